@@ -1,0 +1,1 @@
+"""Sun-vector estimators: pure functions of diode irradiances and normals."""

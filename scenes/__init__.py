@@ -1,0 +1,1 @@
+"""Satellite descriptions (TOML data) and the code that builds their geometry."""

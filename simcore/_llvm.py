@@ -1,0 +1,82 @@
+"""Find a libLLVM that Dr.Jit's CPU backend can use, before drjit is imported.
+
+Dr.Jit loads libLLVM at run time. Debian 12's libLLVM 14 is refused as too
+old and libLLVM 15 aborts on the first kernel ("Cannot select ...
+fminimum"), so relying on whatever the loader finds crashes. We look, in
+order, at: ``$DRJIT_LIBLLVM_PATH`` if the user set it; the library that the
+``karellen-llvm-core`` wheel (a dependency) installs under ``sys.prefix``;
+system libraries of version >= 16, newest first.
+"""
+import glob
+import os
+import re
+import sys
+
+MIN_VERSION = 16
+ENV = "DRJIT_LIBLLVM_PATH"
+
+INSTALL_HINT = (
+    "Install one with 'pip install karellen-llvm-core' (no root needed; "
+    "sunsim's set-up does this) or 'apt-get install libllvm19', or point "
+    f"{ENV} at a libLLVM.so of version >= {MIN_VERSION}."
+)
+
+
+class LLVMNotFoundError(RuntimeError):
+    """No usable libLLVM for Dr.Jit's CPU (llvm_*) variants."""
+
+
+def _version(path):
+    m = re.search(r"libLLVM[-.]?(?:so\.)?(\d+)", os.path.basename(path))
+    return int(m.group(1)) if m else -1
+
+
+def candidates():
+    """Return candidate libLLVM paths, best first."""
+    found = []
+    for prefix in dict.fromkeys([sys.prefix, sys.base_prefix]):
+        found += sorted(glob.glob(os.path.join(prefix, "lib", "libLLVM.so.*")),
+                        key=_version, reverse=True)
+    system = []
+    for d in ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu",
+              "/usr/lib64", "/usr/lib", "/usr/local/lib"):
+        system += glob.glob(os.path.join(d, "libLLVM*.so*"))
+        system += glob.glob(f"/usr/lib/llvm-*/lib/libLLVM*.so*")
+    system = [p for p in dict.fromkeys(system) if _version(p) >= MIN_VERSION]
+    found += sorted(system, key=_version, reverse=True)
+    return found
+
+
+def find_libllvm():
+    """Return the path of a usable libLLVM, or raise LLVMNotFoundError."""
+    user = os.environ.get(ENV)
+    if user:
+        if not os.path.isfile(user):
+            raise LLVMNotFoundError(f"{ENV}={user!r} is not a file. " + INSTALL_HINT)
+        v = _version(user)
+        if 0 <= v < MIN_VERSION:
+            raise LLVMNotFoundError(
+                f"{ENV}={user!r} is libLLVM {v}; Dr.Jit needs >= {MIN_VERSION} "
+                "(14 is refused, 15 aborts on the first kernel). " + INSTALL_HINT)
+        return user
+    for path in candidates():
+        if os.path.isfile(path):
+            return path
+    raise LLVMNotFoundError("No libLLVM >= %d found for Dr.Jit's CPU backend. %s"
+                            % (MIN_VERSION, INSTALL_HINT))
+
+
+def configure():
+    """Set DRJIT_LIBLLVM_PATH for this process; return the path, or None.
+
+    Never raises: a missing library only matters for the llvm_* variants, and
+    the renderer raises LLVMNotFoundError with the hint when it needs one.
+    """
+    if "drjit" in sys.modules:
+        return os.environ.get(ENV)
+    try:
+        path = find_libllvm()
+    except LLVMNotFoundError:
+        return None
+    os.environ[ENV] = path
+    return path
