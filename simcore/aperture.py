@@ -1,0 +1,119 @@
+"""The aperture of a diode: a square diode at the bottom of a rectangular well.
+
+The one geometry shared by the scene builder (walls as meshes), the renderer
+(which traces them) and the analytic model (which uses the closed-form
+overlap below), so all three describe the same object.
+
+Diode frame: rows ``(u, v, n)`` of a (3, 3) matrix in the body frame; ``n``
+is the diode normal, ``u`` and ``v`` run along the diode's edges and the
+well's walls. The diode (sides ``diode_x_m`` x ``diode_y_m``, along u and v)
+lies centred on the floor of the well; the well's straight walls rise along
+``n`` to ``height_m`` above the diode surface and its opening is
+``opening_x_m`` x ``opening_y_m``, centred on the diode. Light from unit
+direction ``d`` (diode frame, ``d_n > 0``) passes the opening and reaches the
+diode plane shifted by ``-height * (d_u/d_n, d_v/d_n)``, so the lit fraction
+of the diode is the overlap of the diode with the opening shifted that way.
+The opening's prism is convex and contains the diode, so no wall below the
+rim can block a ray that entered the opening: the overlap is exact.
+
+A well realises a thesis-style FOV (eq. 4.15) when the whole diode is lit up
+to ``fov`` along each wall axis and no light reaches it beyond ``cutoff``
+(83 deg in the thesis): ``w - a = 2 h tan(fov)`` and ``w + a = 2 h tan(cutoff)``.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from simcore.constants import BPW34_AREA_M2, EQ415_CUTOFF_COS
+
+EQ415_CUTOFF_DEG = float(np.degrees(np.arccos(EQ415_CUTOFF_COS)))
+
+
+def _overlap_1d(half_diode, half_open, shift):
+    """Return the overlap length of [-a, a] with [-w - shift, w - shift]."""
+    lo = np.maximum(-half_diode, -half_open - shift)
+    hi = np.minimum(half_diode, half_open - shift)
+    return np.clip(hi - lo, 0.0, None)
+
+
+@dataclass(frozen=True)
+class WellAperture:
+    """A rectangular well of straight walls over a rectangular diode (metres)."""
+
+    diode_x_m: float
+    diode_y_m: float
+    opening_x_m: float
+    opening_y_m: float
+    height_m: float
+
+    def __post_init__(self):
+        for name in ("diode_x_m", "diode_y_m", "opening_x_m", "opening_y_m"):
+            if not (getattr(self, name) > 0 and np.isfinite(getattr(self, name))):
+                raise ValueError(f"aperture {name} must be a positive length in metres, got {getattr(self, name)}")
+        if not (self.height_m >= 0 and np.isfinite(self.height_m)):
+            raise ValueError(f"aperture height_m must be >= 0 metres, got {self.height_m}")
+        if self.opening_x_m < self.diode_x_m or self.opening_y_m < self.diode_y_m:
+            raise ValueError("the well's opening must be at least as large as the diode it sits over "
+                             f"(opening {self.opening_x_m} x {self.opening_y_m} m, "
+                             f"diode {self.diode_x_m} x {self.diode_y_m} m)")
+
+    @classmethod
+    def bare(cls, diode_area_m2=BPW34_AREA_M2):
+        """Return a square diode with no well (pure cosine response)."""
+        a = float(np.sqrt(diode_area_m2))
+        return cls(a, a, a, a, 0.0)
+
+    @classmethod
+    def design(cls, fov_deg, cutoff_deg=EQ415_CUTOFF_DEG, diode_area_m2=BPW34_AREA_M2):
+        """Return the square well fully lighting a square diode up to ``fov_deg``
+        along the wall axes and cutting it off at ``cutoff_deg`` (eq. 4.15)."""
+        fov, cut = np.radians(float(fov_deg)), np.radians(float(cutoff_deg))
+        if not 0 < fov < np.pi / 2:
+            raise ValueError(f"FOV must lie in (0, 90) deg, got {fov_deg}")
+        if not fov < cut < np.pi / 2:
+            raise ValueError(f"cut-off angle must lie between the FOV ({fov_deg} deg) and 90 deg, got {cutoff_deg}")
+        a = float(np.sqrt(diode_area_m2))
+        h = a / (np.tan(cut) - np.tan(fov))
+        w = a + 2.0 * h * np.tan(fov)
+        return cls(a, a, float(w), float(w), float(h))
+
+    @property
+    def diode_area_m2(self):
+        return self.diode_x_m * self.diode_y_m
+
+    def lit_fraction(self, d_diode):
+        """Return the lit fraction of the diode (0..1) for unit directions ``d_diode`` (..., 3)
+        towards the source, in the diode frame (u, v, n)."""
+        d = np.asarray(d_diode, dtype=float)
+        dn = d[..., 2]
+        front = dn > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tx = np.where(front, d[..., 0] / np.where(front, dn, 1.0), 0.0)
+            ty = np.where(front, d[..., 1] / np.where(front, dn, 1.0), 0.0)
+        fx = _overlap_1d(self.diode_x_m / 2, self.opening_x_m / 2, self.height_m * tx) / self.diode_x_m
+        fy = _overlap_1d(self.diode_y_m / 2, self.opening_y_m / 2, self.height_m * ty) / self.diode_y_m
+        return np.where(front, fx * fy, 0.0)
+
+    def response(self, d_diode):
+        """Return the angular response (lit fraction x cos incidence) for directions (..., 3)
+        in the diode frame: irradiance on the diode per unit normal irradiance."""
+        d = np.asarray(d_diode, dtype=float)
+        return self.lit_fraction(d) * np.clip(d[..., 2], 0.0, None)
+
+
+def diode_frame(normal_body):
+    """Return the (3, 3) diode frame (rows u, v, n) for a unit normal in the body frame.
+
+    ``u`` is horizontal (perpendicular to the body z axis), ``u = z x n``
+    normalised; for a normal along +-z, ``u`` is the body x axis. ``v = n x u``.
+    """
+    n = np.asarray(normal_body, dtype=float)
+    norm = np.linalg.norm(n)
+    if not np.isclose(norm, 1.0, atol=1e-6):
+        raise ValueError(f"a diode normal must be a unit vector, got {n.tolist()} (norm {norm:.6f})")
+    u = np.cross([0.0, 0.0, 1.0], n)
+    if np.linalg.norm(u) < 1e-9:
+        u = np.array([1.0, 0.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    return np.stack([u, v, n])
