@@ -1,1 +1,20 @@
-"""Sun-vector estimators: pure functions of diode irradiances and normals."""
+"""Sun-vector estimators: pure functions of diode irradiances and normals.
+
+The thesis' four estimators (sec. 4.3) live in :mod:`estimators.sun_vector`, the error
+metrics in :mod:`estimators.metrics`. Nothing here imports the renderer.
+"""
+from estimators.metrics import (angle_error_deg, hanning_mean_std, hanning_window, orbit_summary,
+                                zenith_azimuth_error_deg)
+from estimators.sun_vector import (albedo_sun_estimate, pinv_estimate, sun_albedo_sun_estimate,
+                                   weighted_lsq, wls_estimate)
+
+ESTIMATORS = {
+    "pinv": pinv_estimate,
+    "wls": wls_estimate,
+    "albedo_sun": albedo_sun_estimate,
+    "sun_albedo_sun": sun_albedo_sun_estimate,
+}
+
+__all__ = ["ESTIMATORS", "albedo_sun_estimate", "angle_error_deg", "hanning_mean_std", "hanning_window",
+           "orbit_summary", "pinv_estimate", "sun_albedo_sun_estimate", "weighted_lsq", "wls_estimate",
+           "zenith_azimuth_error_deg"]
