@@ -14,6 +14,7 @@ a UTC day is counted as 86 400 s when converting from calendar values;
 leap seconds enter where they matter, in :meth:`Epochs.tt` (via erfa).
 """
 import datetime as _dt
+import warnings
 
 import erfa
 import numpy as np
@@ -153,10 +154,24 @@ class Epochs:
         return ((self.jd1 - ref.jd1[0]) + (self.jd2 - ref.jd2[0])) * SECONDS_PER_DAY
 
     # ---- time scales ------------------------------------------------------
+    def _erfa_utc(self):
+        """Return (jd1, jd2) in erfa's UTC convention.
+
+        Epochs count 86 400 s per day (like numpy and sgp4); erfa reads the
+        fraction of a day that ends in a leap second as a share of 86 401 s.
+        """
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", erfa.ErfaWarning)  # "dubious year" past erfa's leap-second table
+            y0, m0, d0, _ = erfa.jd2cal(self.jd1, 0.0)
+            y1, m1, d1, _ = erfa.jd2cal(self.jd1 + 1.0, 0.0)
+            leap = erfa.dat(y1, m1, d1, 0.0) - erfa.dat(y0, m0, d0, 0.0)
+        return self.jd1, self.jd2 * SECONDS_PER_DAY / (SECONDS_PER_DAY + leap)
+
     def tai(self):
         """Return TAI as a two-part Julian date (leap seconds from erfa's table)."""
-        with np.errstate(all="ignore"):
-            return erfa.utctai(self.jd1, self.jd2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", erfa.ErfaWarning)
+            return erfa.utctai(*self._erfa_utc())
 
     def tt(self):
         """Return TT as a two-part Julian date."""
@@ -165,4 +180,6 @@ class Epochs:
     def ut1(self, dut1_s=0.0):
         """Return UT1 = UTC + dut1_s as a two-part Julian date."""
         dut1 = np.broadcast_to(np.asarray(dut1_s, dtype=float), self.jd1.shape)
-        return erfa.utcut1(self.jd1, self.jd2, dut1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", erfa.ErfaWarning)
+            return erfa.utcut1(*self._erfa_utc(), dut1)

@@ -66,3 +66,18 @@ def test_bad_range():
         Epochs.range("2016-07-02", 10, 0)
     with pytest.raises(ValueError, match="duration must be a positive"):
         Epochs.range("2016-07-02", -5, 1)
+
+
+def test_leap_second_day_maps_to_erfa_utc():
+    # 2016-12-31 ended with a leap second (IERS Bulletin C 52): 23:59:59 UTC that day is
+    # TAI 2017-01-01T00:00:35 (TAI - UTC = 36 s until the leap, 37 s after).
+    e = Epochs.from_any("2016-12-31T23:59:59Z")
+    t1, t2 = e.tai()
+    j1, j2 = erfa.dtf2d("TAI", 2017, 1, 1, 0, 0, 35.0)
+    assert ((t1 - j1) + (t2 - j2))[0] * 86400 == pytest.approx(0.0, abs=1e-6)
+
+
+def test_far_future_dates_do_not_warn():
+    # erfa warns "dubious year" past its leap-second table; the suite turns warnings into errors.
+    tt1, tt2 = Epochs.from_any("2040-01-01T00:00:00Z").tt()
+    assert np.isfinite(tt1 + tt2).all()
