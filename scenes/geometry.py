@@ -1,0 +1,148 @@
+"""Triangle meshes of a satellite configuration (trimesh), body frame, metres.
+
+Parts (see :mod:`scenes.config` for how a mount is placed):
+
+- ``body``: the 2U envelope, a box ``size_m`` centred at the origin (z the long
+  axis). Its side faces are the panels; the corner rails (8.5 mm) lie inside
+  the envelope and are kept free of mounts by the configuration's validation,
+  so they add no surface of their own.
+- ``ramp_k``: a convex prism from the panel up to the underside of diode k's
+  floor; its top face is perpendicular to the diode normal (the tilt).
+- ``floor_k``: an opaque square plate, top flush with the diode surface, with a
+  hole exactly the diode's size (the diode surface itself is no occluder: the
+  renderer starts rays on it).
+- ``well_k``: the hollow square well, straight walls ``mount.wall_m`` thick
+  from the diode surface up to ``aperture.height_m``; its inner cross-section is
+  the aperture's opening and its walls run along the diode frame's u and v axes
+  (:func:`simcore.aperture.diode_frame`). Absent for a bare diode (height 0).
+- ``diode_k`` (only in :func:`build_parts` with ``include_diodes=True`` and in
+  :func:`diode_surfaces`): the sensitive square, facing along the normal.
+
+Every part is a closed, consistently outward-oriented mesh (the diode squares
+excepted); parts touch but do not overlap.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from scenes.config import SatelliteConfig, panel_axes
+
+_SQUARE = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)  # counter-clockwise in (u, v)
+
+
+def _to_body(local, frame, centre):
+    """Map points (M, 3) in the diode frame (u, v, n coordinates) to the body frame."""
+    return centre + local @ frame
+
+
+def _square_ring(outer_half, inner_half, n0, n1):
+    """Return (vertices, faces) of a closed square ring prism in local (u, v, n) coordinates.
+
+    ``outer_half``/``inner_half``: (hx, hy) half sides; the solid spans n0..n1 along n.
+    """
+    o, i = _SQUARE * outer_half, _SQUARE * inner_half
+    verts = np.vstack([np.column_stack([o, np.full(4, n0)]), np.column_stack([i, np.full(4, n0)]),
+                       np.column_stack([o, np.full(4, n1)]), np.column_stack([i, np.full(4, n1)])])
+    o0, i0, o1, i1 = 0, 4, 8, 12
+    faces = []
+    for a in range(4):
+        b = (a + 1) % 4
+        faces += [[o0 + a, o0 + b, o1 + b], [o0 + a, o1 + b, o1 + a],      # outer wall, outward
+                  [i0 + a, i1 + b, i0 + b], [i0 + a, i1 + a, i1 + b],      # inner wall, facing the hole
+                  [o1 + a, o1 + b, i1 + b], [o1 + a, i1 + b, i1 + a],      # top ring, +n
+                  [o0 + a, i0 + b, o0 + b], [o0 + a, i0 + a, i0 + b]]      # bottom ring, -n
+    return verts, np.array(faces)
+
+
+def _ring_mesh(outer_half, inner_half, n0, n1, frame, centre):
+    verts, faces = _square_ring(np.asarray(outer_half), np.asarray(inner_half), n0, n1)
+    return trimesh.Trimesh(_to_body(verts, frame, centre), faces, process=True)
+
+
+def body_mesh(config):
+    """Return the body envelope box (body frame, m)."""
+    return trimesh.creation.box(extents=np.asarray(config.body.size_m))
+
+
+def mount_meshes(config, k):
+    """Return {'ramp', 'floor', 'well'} meshes of diode k's mount (body frame, m); 'well' absent when bare."""
+    d, m, body = config.diodes[k], config.mount, config.body
+    ap, frame, centre = d.aperture, d.frame_body, d.position_body_m
+    outer = np.array([ap.opening_x_m, ap.opening_y_m]) / 2.0 + m.wall_m
+    parts = {}
+    p, _, _ = panel_axes(d.panel)
+    bottom, _ = d.mount_corners_m(m)
+    panel_offset = p @ body.panel_centre_m(d.panel)
+    foot = bottom - np.outer(bottom @ p - panel_offset, p)
+    ramp = trimesh.convex.convex_hull(np.vstack([bottom, foot]))
+    if ramp.volume > 1e-15:
+        parts["ramp"] = ramp
+    parts["floor"] = _ring_mesh(outer, [ap.diode_x_m / 2.0, ap.diode_y_m / 2.0], -m.floor_m, 0.0, frame, centre)
+    if ap.height_m > 0:
+        parts["well"] = _ring_mesh(outer, [ap.opening_x_m / 2.0, ap.opening_y_m / 2.0], 0.0, ap.height_m,
+                                   frame, centre)
+    return parts
+
+
+def diode_surfaces(config):
+    """Return the diodes' sensitive squares as one mesh (2 faces per diode, in index order), body frame, m.
+
+    Face normals point along the diode normals. Not an occluder: for pictures and checks only.
+    """
+    verts, faces = [], []
+    for k, d in enumerate(config.diodes):
+        half = np.array([d.aperture.diode_x_m, d.aperture.diode_y_m]) / 2.0
+        local = np.column_stack([_SQUARE * half, np.zeros(4)])
+        verts.append(_to_body(local, d.frame_body, d.position_body_m))
+        faces += [[4 * k, 4 * k + 1, 4 * k + 2], [4 * k, 4 * k + 2, 4 * k + 3]]
+    return trimesh.Trimesh(np.vstack(verts), np.array(faces), process=False)
+
+
+def build_parts(config, include_diodes=False):
+    """Return the named parts {'body', 'ramp_k', 'floor_k', 'well_k'[, 'diode_k']} (body frame, m)."""
+    if not isinstance(config, SatelliteConfig):
+        config = SatelliteConfig.load(config)
+    parts = {"body": body_mesh(config)}
+    for k in range(config.n_diodes):
+        for name, mesh in mount_meshes(config, k).items():
+            parts[f"{name}_{k}"] = mesh
+    if include_diodes:
+        surf = diode_surfaces(config)
+        for k in range(config.n_diodes):
+            parts[f"diode_{k}"] = trimesh.Trimesh(surf.vertices[4 * k:4 * k + 4], surf.faces[2 * k:2 * k + 2] - 4 * k,
+                                                  process=False)
+    return parts
+
+
+def build_satellite_mesh(config):
+    """Return the satellite's occluder (body, ramps, floors, wells) as one mesh, body frame, metres.
+
+    ``mesh.metadata['parts']`` maps each part name to its (first, stop) face range. The diodes'
+    sensitive surfaces are NOT included (see :func:`diode_surfaces`).
+    """
+    parts = build_parts(config)
+    ranges, start = {}, 0
+    for name, mesh in parts.items():
+        ranges[name] = (start, start + len(mesh.faces))
+        start += len(mesh.faces)
+    mesh = trimesh.util.concatenate(list(parts.values()))
+    mesh.metadata["parts"] = ranges
+    return mesh
+
+
+def export(config, path, include_diodes=True):
+    """Write the satellite mesh (metres, body frame) to ``path`` and return the path.
+
+    ``.obj``/``.glb``/``.gltf``: a scene with one named geometry per part; ``.ply``/``.stl``/other
+    trimesh formats: one merged mesh. ``include_diodes`` adds the sensitive squares.
+    """
+    path = Path(path)
+    parts = build_parts(config, include_diodes=include_diodes)
+    if path.suffix.lower() in (".obj", ".glb", ".gltf"):
+        trimesh.Scene({name: mesh for name, mesh in parts.items()}).export(str(path))
+    else:
+        trimesh.util.concatenate(list(parts.values())).export(str(path))
+    return path

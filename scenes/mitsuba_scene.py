@@ -1,0 +1,260 @@
+"""A picture of the satellite over the TOMS-textured Earth, rendered with Mitsuba 3 (llvm_ad_mono).
+
+Render frame = body axes with the satellite at the origin (``docs/conventions.md``):
+the Earth sphere (radius 6371.01 km) sits at ``-R_body_from_ecef @ r_sat_ecef_m``
+and is turned by ``R_body_from_ecef`` so that its texture keeps the geography.
+Mitsuba's sphere maps a local point to ``u = phi / 2 pi`` (phi from local +x
+towards +y, i.e. east longitude from 0 to 360 deg) and ``v = theta / pi``
+(theta from local +z, the north pole), and its bitmap texture puts ``v = 0``
+at the first stored row. The TOMS map (row 0 = SOUTH band, column 0 =
+longitude -179.375 deg) is therefore flipped north-up and rolled by half a
+turn before it becomes the Earth's reflectance: raw values (some exceed 1 over
+ice, never clamped), nearest filtering. The Sun is a ``directional`` emitter
+whose ``direction`` is the propagation direction, minus the Sun vector.
+
+The picture is radiometric (mono), tone-mapped for display and tinted with a
+per-shape false colour (Earth blue, body grey, ramps gold, wells dark, diodes
+blue) from an extra shape-index pass, so parts stay recognisable.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import simcore  # noqa: F401  (must precede drjit/mitsuba: sets DRJIT_LIBLLVM_PATH)
+from simcore.constants import R_EARTH_MEAN_M
+
+VARIANT = "llvm_ad_mono"
+TOMS_FILE = "toms_2005_mean.npz"
+
+# false colours (linear RGB multipliers) per part kind, applied to the mono radiance
+_TINT = {"earth": (0.70, 0.85, 1.15), "body": (1.0, 1.0, 1.0), "ramp": (1.15, 0.95, 0.55),
+         "floor": (0.9, 0.9, 0.9), "well": (0.9, 0.9, 0.9), "diode": (0.45, 0.6, 1.3)}
+_REFLECTANCE = {"body": 0.4, "ramp": 0.45, "floor": 0.2, "well": 0.2, "diode": 0.05}
+
+
+def _mi():
+    import mitsuba as mi
+
+    if mi.variant() != VARIANT:
+        mi.set_variant(VARIANT)
+    return mi
+
+
+@dataclass(frozen=True)
+class PictureGeometry:
+    """One epoch's geometry for a picture: satellite position and Sun direction (ECEF), attitude.
+
+    ``r_sat_ecef_m`` (3,), ``sun_dir_ecef`` (3,) unit vector towards the Sun, ``R_body_from_ecef``
+    (3, 3); ``camera_dir_body`` (3,) optional unit vector from the satellite towards the camera.
+    """
+
+    r_sat_ecef_m: np.ndarray
+    sun_dir_ecef: np.ndarray
+    R_body_from_ecef: np.ndarray
+    camera_dir_body: np.ndarray | None = None
+
+
+def _enu(lat_deg, lon_deg):
+    """Return the rows (east, north, up) at a geodetic-sphere point, ECEF."""
+    la, lo = np.radians(lat_deg), np.radians(lon_deg)
+    up = np.array([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)])
+    east = np.array([-np.sin(lo), np.cos(lo), 0.0])
+    return np.stack([east, np.cross(up, east), up])
+
+
+def default_geometry(lat_deg=50.0, lon_deg=6.0, altitude_m=668e3):
+    """Return a :class:`PictureGeometry`: the satellite 668 km over Europe, the Sun from the side.
+
+    The Sun stands 30 deg above the local horizon in the east-north-east (Europe sunlit, the
+    satellite lit from the side); the satellite's long axis (body z) lies level, pointing east,
+    its +x panel turned 35 deg from the zenith towards the north so that the top side panels
+    and the +z end face the camera; the camera hangs north of the satellite and looks south,
+    down 33 deg, over the Alps and the Mediterranean to the Sahara and the Earth's limb.
+    """
+    east, north, up = _enu(lat_deg, lon_deg)
+    r_sat = (R_EARTH_MEAN_M + altitude_m) * up
+    sun = _direction(north, east, up, azimuth_deg=75.0, elevation_deg=30.0)
+    z_b = east
+    tilt = np.radians(35.0)
+    x_b = np.cos(tilt) * up + np.sin(tilt) * north
+    y_b = np.cross(z_b, x_b)
+    R_body_from_ecef = np.stack([x_b, y_b, z_b])
+    cam = _direction(north, east, up, azimuth_deg=20.0, elevation_deg=33.0)
+    return PictureGeometry(r_sat, sun, R_body_from_ecef, R_body_from_ecef @ cam)
+
+
+def _direction(north, east, up, azimuth_deg, elevation_deg):
+    """Return the unit vector at an azimuth (from north towards east) and elevation, ECEF."""
+    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
+    return np.cos(el) * (np.cos(az) * north + np.sin(az) * east) + np.sin(el) * up
+
+
+def toms_texture_array():
+    """Return the TOMS reflectivity as Mitsuba's sphere texture (180, 288): row 0 north, column 0 lon 0..1.25 deg.
+
+    Raw values, not clamped.
+    """
+    from importlib.resources import files
+
+    with files("simcore").joinpath("data", TOMS_FILE).open("rb") as fh:
+        data = np.load(fh)
+        refl, lon = np.asarray(data["reflectivity"], float), np.asarray(data["lon_deg"], float)
+    shift = int(np.argmin(np.abs(np.mod(lon, 360.0) - (360.0 / lon.size) / 2.0)))  # the cell starting at lon 0
+    return np.ascontiguousarray(np.roll(refl, -shift, axis=1)[::-1])
+
+
+def _mesh(mi, name, tm, reflectance):
+    """Return a Mitsuba mesh (flat shaded, diffuse) from a trimesh in the render frame (m)."""
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": {"type": "uniform", "value": float(reflectance)}})
+    props["face_normals"] = True
+    mesh = mi.Mesh(name, len(tm.vertices), len(tm.faces), props=props)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = np.asarray(tm.vertices, dtype=np.float32).ravel()
+    params["faces"] = np.asarray(tm.faces, dtype=np.uint32).ravel()
+    params.update()
+    return mesh
+
+
+def _camera_frame(camera_dir_body, up_body):
+    d = np.asarray(camera_dir_body, float)
+    d = d / np.linalg.norm(d)
+    up = np.asarray(up_body, float) - (np.asarray(up_body, float) @ d) * d
+    return d, up / np.linalg.norm(up)
+
+
+def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, camera_distance_m=1.0,
+                fov_deg=36.0, max_depth=4):
+    """Return (mitsuba scene dict, shape ids, their part kinds) for the picture (render frame, m)."""
+    mi = _mi()
+    from scenes.geometry import build_parts
+
+    g = default_geometry() if epoch_geometry is None else epoch_geometry
+    if isinstance(g, dict):
+        g = PictureGeometry(**g)
+    R = np.asarray(g.R_body_from_ecef, float)
+    r_sat_body = R @ np.asarray(g.r_sat_ecef_m, float)
+    sun_body = R @ np.asarray(g.sun_dir_ecef, float)
+    sun_body = sun_body / np.linalg.norm(sun_body)
+    zenith_body = r_sat_body / np.linalg.norm(r_sat_body)
+    cam_dir = g.camera_dir_body
+    if cam_dir is None:
+        # look down 28 deg from a horizontal direction perpendicular to the Sun's horizontal bearing
+        horiz = np.cross(zenith_body, sun_body)
+        horiz = horiz / np.linalg.norm(horiz) if np.linalg.norm(horiz) > 1e-9 else np.cross(zenith_body, [1, 0, 0])
+        cam_dir = np.cos(np.radians(28)) * horiz + np.sin(np.radians(28)) * zenith_body
+    cam_dir, up = _camera_frame(cam_dir, zenith_body)
+
+    to_world_earth = np.eye(4)
+    to_world_earth[:3, :3] = R  # local sphere axes = ECEF axes
+    to_world_earth[:3, 3] = -r_sat_body
+    bitmap = mi.Bitmap(toms_texture_array().astype(np.float32))
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": int(max_depth)},
+        "sensor": {
+            "type": "perspective", "fov": float(fov_deg), "fov_axis": "x",
+            "near_clip": 0.01, "far_clip": 2.0e7,
+            "to_world": mi.ScalarTransform4f().look_at(origin=(camera_distance_m * cam_dir).tolist(),
+                                                     target=[0.0, 0.0, 0.0], up=up.tolist()),
+            "sampler": {"type": "independent", "sample_count": int(spp)},
+            "film": {"type": "hdrfilm", "width": int(resolution[0]), "height": int(resolution[1]),
+                     "rfilter": {"type": "box"}, "pixel_format": "luminance"},
+        },
+        # irradiance pi W/m^2 makes a white Lambertian plate facing the Sun radiance 1 (display scale)
+        "sun": {"type": "directional", "direction": (-sun_body).tolist(), "irradiance": float(np.pi)},
+        "earth": {
+            "type": "sphere", "radius": R_EARTH_MEAN_M, "to_world": mi.ScalarTransform4f(to_world_earth),
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "bitmap", "bitmap": bitmap, "raw": True,
+                                                        "filter_type": "nearest"}},
+        },
+    }
+    names, kinds = ["earth"], ["earth"]
+    for name, tm in build_parts(config, include_diodes=True).items():
+        kind = name.split("_")[0]
+        scene[name] = _mesh(mi, name, tm, _REFLECTANCE[kind])
+        names.append(name)
+        kinds.append(kind)
+    return scene, names, kinds
+
+
+def load_scene(scene_dict):
+    """Return the loaded Mitsuba scene, without the Earth sphere's spurious transform warnings.
+
+    Mitsuba checks a sphere's to_world for shear and uneven scale with an absolute 1e-6 tolerance
+    in float32, which a 6371 km radius always trips; the transform is a rotation times a uniform scale.
+    """
+    mi = _mi()
+    logger = mi.logger()
+    level = logger.log_level()
+    logger.set_log_level(mi.LogLevel.Error)
+    try:
+        return mi.load_dict(scene_dict)
+    finally:
+        logger.set_log_level(level)
+
+
+@dataclass(frozen=True)
+class Picture:
+    """A rendered picture: the PNG path, the display image (H, W, 3) uint8 and masks per part kind."""
+
+    path: str
+    rgb: np.ndarray
+    radiance: np.ndarray
+    kind: np.ndarray  # (H, W) object array of part kinds ('' for background)
+
+    @property
+    def satellite_mask(self):
+        """Return (H, W) True where the first hit is a part of the satellite."""
+        return (self.kind != "") & (self.kind != "earth")
+
+
+def picture(config, path_png, epoch_geometry=None, spp=64, resolution=(960, 540), camera_distance_m=1.0,
+            fov_deg=36.0, seed=0, exposure=1.0):
+    """Render the satellite over the Earth and write a PNG; return a :class:`Picture`.
+
+    ``config``: a :class:`scenes.config.SatelliteConfig` or a configuration name; ``epoch_geometry``:
+    a :class:`PictureGeometry` or a dict of its fields (default :func:`default_geometry`);
+    ``camera_distance_m`` from the satellite centre, ``fov_deg`` horizontal; ``exposure`` scales the
+    display image only (1: a white plate facing the Sun is just white). ``Picture.radiance`` is
+    the rendered radiance in units of E_sun / pi (the Sun's irradiance is pi).
+    """
+    mi = _mi()
+    from scenes.config import SatelliteConfig
+
+    if not isinstance(config, SatelliteConfig):
+        config = SatelliteConfig.load(config)
+    scene_dict, names, kinds = build_scene(config, epoch_geometry, resolution, spp, camera_distance_m, fov_deg)
+    scene = load_scene(scene_dict)
+    radiance = np.array(mi.render(scene, seed=seed, spp=int(spp)))[..., 0]
+    # which shape each pixel centre sees: one primary ray per pixel
+    w, h = int(resolution[0]), int(resolution[1])
+    sensor = scene.sensors()[0]
+    jj, ii = np.meshgrid(np.arange(w), np.arange(h))
+    pos = mi.Point2f(((jj.ravel() + 0.5) / w).astype(np.float32), ((ii.ravel() + 0.5) / h).astype(np.float32))
+    rays, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
+    si = scene.ray_intersect(rays)
+    hit = np.array(si.is_valid())
+    kind = np.full(h * w, "", dtype=object)
+    by_id = dict(zip(names, kinds))
+    for shape in scene.shapes():
+        mask = np.array(si.shape == mi.ShapePtr(shape))
+        kind[mask & hit] = by_id[shape.id()]
+    kind = kind.reshape(h, w)
+    rgb = _tone_map(radiance * float(exposure), kind)
+    import matplotlib.image
+
+    matplotlib.image.imsave(str(path_png), rgb)
+    return Picture(str(path_png), rgb, radiance, kind)
+
+
+def _tone_map(radiance, kind):
+    """Return an sRGB uint8 image (H, W, 3): false-colour tint per part, exposure 1, sRGB transfer curve."""
+    tint = np.ones(radiance.shape + (3,))
+    for k, c in _TINT.items():
+        tint[kind == k] = c
+    lin = np.clip(radiance[..., None] * tint, 0.0, 1.0)
+    srgb = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * np.power(lin, 1 / 2.4) - 0.055)
+    return (srgb * 255 + 0.5).astype(np.uint8)
