@@ -1,0 +1,377 @@
+"""Analytic diode irradiance along an orbit: direct Sun + Earth albedo, N epochs x K diodes.
+
+The reference the renderer is checked against. For each epoch n and diode k
+(diode frame ``F_k``, rows (u, v, n) in the body frame; attitude
+``R_ecef_from_body``)::
+
+    direct[n, k] = E_sun * lit[n] * A_k(F_k R^T s_n)
+    albedo[n, k] = sum_c E_c(n) * A_k(F_k R^T e_c(n))
+
+with s_n the unit vector from the satellite to the Sun, lit[n] the eclipse
+factor (:mod:`simcore.eclipse`; the thesis' cylinder by default, sec. 4.1.4),
+E_c the Bhanderi cell irradiance of :mod:`simcore.albedo` (physical mode),
+e_c the unit vector from the satellite to cell c and A_k the diode's angular
+response (:mod:`simcore.response`: cosine, eq. 2.32, eq. 4.15, or the well
+aperture of :mod:`simcore.aperture`). The eclipse dims the direct Sun only;
+the albedo needs no factor: from inside the shadow cylinder no sunlit cell
+centre is visible (its edge is the horizon ray grazing the terminator), and
+in a penumbra the visible sunlit cells do light the satellite.
+
+Speed (issue item 4): only cells visible from the satellite and sunlit are
+evaluated. Per epoch and map row, the visible cap (``r_sat . n > R``) and the
+sunlit hemisphere (``s . n > 0``) are each an arc of longitude, found in
+closed form; their intersection is at most two runs of consecutive columns.
+Each run is one lane of a Dr.Jit LLVM kernel (multi-threaded, SIMD, one
+fused kernel per batch of epochs) that loops over its columns and
+accumulates the K diode sums in registers; the runs of an epoch are added up
+afterwards. ``backend='numpy'`` evaluates the same cells with numpy in
+float64 and the responses' own ``response()`` methods (any response object
+works there); it is the cross-check of the kernel.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from simcore import eclipse as _eclipse
+from simcore import response as _resp
+from simcore.albedo import check_geometry, sun_irradiance_w_m2
+from simcore.constants import E_SUN_W_M2, R_SUN_M
+from simcore.maps import as_map
+
+_TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class DiodeIrradiance:
+    """Irradiance on each diode, W/m^2 on its sensitive area: direct Sun and Earth albedo, (N, K) each."""
+
+    direct_w_m2: np.ndarray
+    albedo_w_m2: np.ndarray
+    illuminated_fraction: np.ndarray  # (N,), the eclipse factor applied to the direct Sun
+
+    @property
+    def total_w_m2(self):
+        """Return direct + albedo, (N, K) W/m^2."""
+        return self.direct_w_m2 + self.albedo_w_m2
+
+    def __getitem__(self, key):
+        return getattr(self, key)
+
+    def keys(self):
+        return ("direct_w_m2", "albedo_w_m2", "illuminated_fraction")
+
+
+# ---- input checks ---------------------------------------------------------------------
+def _rows(name, value, n=None):
+    arr = np.asarray(value, dtype=float)
+    if arr.shape == (3,):
+        arr = arr[None]
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (N, 3) (or (3,)) in metres, ECEF; got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+        raise ValueError(f"{name} has non-finite rows {bad[:10].tolist()}; drop or fill those epochs first")
+    return arr
+
+
+def _rotations(value, n):
+    R = np.asarray(value, dtype=float)
+    if R.shape == (3, 3):
+        R = np.broadcast_to(R, (n, 3, 3))
+    if R.shape != (n, 3, 3):
+        raise ValueError(f"R_ecef_from_body must have shape (N, 3, 3) with N = {n} (or (3, 3)); got {R.shape}")
+    if not np.all(np.isfinite(R)):
+        raise ValueError("R_ecef_from_body has non-finite entries")
+    err = np.abs(np.einsum("nij,nkj->nik", R, R) - np.eye(3)).max()
+    if err > 1e-6:
+        raise ValueError(f"R_ecef_from_body must be rotation matrices (R R^T = I); worst deviation {err:.3g}")
+    return R
+
+
+def _frames(value):
+    F = np.asarray(value, dtype=float)
+    if F.shape == (3, 3):
+        F = F[None]
+    if F.ndim != 3 or F.shape[1:] != (3, 3) or F.shape[0] == 0:
+        raise ValueError(f"diode_frames_body must have shape (K, 3, 3) (rows u, v, n of each diode, "
+                         f"see simcore.aperture.diode_frame); got {F.shape}")
+    if not np.all(np.isfinite(F)):
+        raise ValueError("diode_frames_body has non-finite entries")
+    err = np.abs(np.einsum("kij,klj->kil", F, F) - np.eye(3)).max()
+    if err > 1e-6:
+        raise ValueError(f"each diode frame must have orthonormal rows (u, v, n); worst deviation {err:.3g}")
+    return F
+
+
+def _responses(responses, k):
+    if isinstance(responses, (list, tuple)):
+        if len(responses) != k:
+            raise ValueError(f"got {len(responses)} responses for {k} diodes; give one response or one per diode")
+        return [_resp.check_response(r) for r in responses]
+    return [_resp.check_response(responses)] * k
+
+
+# ---- which cells: per epoch and row, runs of columns ------------------------------------
+def _arc(sin_lat, cos_lat, sin_c, cos_c, threshold):
+    """Return the half-width (rad) of the longitude arc where sin_lat sin_c + cos_lat cos_c cos(dlon) > threshold.
+
+    -1 means empty, >= pi the full circle.
+    """
+    den = cos_lat * cos_c
+    num = threshold - sin_lat * sin_c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(den > 1e-300, num / np.where(den > 1e-300, den, 1.0), np.where(num < 0, -np.inf, np.inf))
+    return np.where(q <= -1.0, np.pi, np.where(q >= 1.0, -1.0, np.arccos(np.clip(q, -1.0, 1.0))))
+
+
+def _columns(start, length, full, lon0, dlon, n_lon):
+    """Return (first column mod n_lon, count) of column centres strictly inside the arc [start, start + length]."""
+    x0 = (start - lon0) / dlon
+    x1 = x0 + length / dlon
+    first = np.floor(x0) + 1.0
+    count = np.clip(np.ceil(x1) - 1.0 - first + 1.0, 0.0, n_lon)
+    count = np.where(length > 0, count, 0.0)
+    first = np.where(full, 0.0, first)
+    count = np.where(full, float(n_lon), count)
+    return np.mod(first, n_lon).astype(np.int64), count.astype(np.int64)
+
+
+def cell_runs(r_sat_m, sun_unit, refl):
+    """Return (rows, first, count), each (N, W, 2): the runs of consecutive columns of row ``rows`` whose
+    cell centres are visible from the satellite and sunlit (count 0 for unused slots)."""
+    R = refl.radius_m
+    r = np.linalg.norm(r_sat_m, axis=1)
+    sat_unit = r_sat_m / r[:, None]
+    cos_rho = R / r
+    rho = np.arccos(np.clip(cos_rho, -1.0, 1.0))
+    lat_s = np.arcsin(np.clip(sat_unit[:, 2], -1.0, 1.0))
+    lon_s = np.arctan2(sat_unit[:, 1], sat_unit[:, 0])
+    lat_sun = np.arcsin(np.clip(sun_unit[:, 2], -1.0, 1.0))
+    lon_sun = np.arctan2(sun_unit[:, 1], sun_unit[:, 0])
+
+    # Rows whose centre latitude lies within rho of the sub-satellite latitude (others cannot be visible).
+    lat0, step = np.radians(refl.lat_deg[0]), np.radians(refl.lat_deg[1] - refl.lat_deg[0])
+    lo = (np.maximum(lat_s - rho, -np.pi / 2) - lat0) / step
+    hi = (np.minimum(lat_s + rho, np.pi / 2) - lat0) / step
+    i_min = np.clip(np.floor(np.minimum(lo, hi)), 0, refl.n_lat - 1).astype(np.int64)
+    i_max = np.clip(np.ceil(np.maximum(lo, hi)), 0, refl.n_lat - 1).astype(np.int64)
+    width = int(np.max(i_max - i_min)) + 1
+    rows = i_min[:, None] + np.arange(width)[None, :]
+    valid = rows <= i_max[:, None]
+    rows = np.minimum(rows, refl.n_lat - 1)
+    lat = np.radians(refl.lat_deg)[rows]
+    sl, cl = np.sin(lat), np.cos(lat)
+
+    a_vis = _arc(sl, cl, np.sin(lat_s)[:, None], np.cos(lat_s)[:, None], cos_rho[:, None])
+    a_sun = _arc(sl, cl, np.sin(lat_sun)[:, None], np.cos(lat_sun)[:, None], 0.0)
+    a_vis = np.where(valid, a_vis, -1.0)
+    full_a, full_b = a_vis >= np.pi, a_sun >= np.pi
+    len_a = np.where(a_vis > 0, 2 * np.minimum(a_vis, np.pi), 0.0)
+    len_b = np.where(a_sun > 0, 2 * np.minimum(a_sun, np.pi), 0.0)
+    a0 = lon_s[:, None] - a_vis
+    b0 = lon_sun[:, None] - a_sun
+    # Intersection of two arcs: B relative to A's start; at most two pieces.
+    t = np.mod(b0 - a0, _TWO_PI)
+    p1_start, p1_len = a0 + t, np.clip(np.minimum(t + len_b, len_a) - t, 0.0, None)
+    p2_start, p2_len = a0, np.clip(np.minimum(t + len_b - _TWO_PI, len_a), 0.0, None)
+    # Full circles: the intersection is simply the other arc.
+    p1_start = np.where(full_a, b0, np.where(full_b, a0, p1_start))
+    p1_len = np.where(full_a, len_b, np.where(full_b, len_a, p1_len))
+    p2_len = np.where(full_a | full_b, 0.0, p2_len)
+    p1_full = full_a & full_b
+    empty = (len_a <= 0) | (len_b <= 0)
+    p1_len = np.where(empty, 0.0, p1_len)
+    p2_len = np.where(empty, 0.0, p2_len)
+
+    lon0, dlon, n_lon = np.radians(refl.lon_deg[0]), np.radians(refl.dlon_deg), refl.n_lon
+    f1, c1 = _columns(p1_start, p1_len, p1_full, lon0, dlon, n_lon)
+    f2, c2 = _columns(p2_start, p2_len, np.zeros_like(p1_full), lon0, dlon, n_lon)
+    return (np.stack([rows, rows], axis=-1), np.stack([f1, f2], axis=-1), np.stack([c1, c2], axis=-1))
+
+
+# ---- the albedo sums ---------------------------------------------------------------------
+def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl):
+    """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy."""
+    n_ep, K = r_sat.shape[0], frames.shape[0]
+    out = np.zeros((n_ep, K))
+    rows, first, count = cell_runs(r_sat, sun_unit, refl)
+    cnt = count.reshape(-1)
+    if cnt.sum() == 0:
+        return out
+    ep = np.repeat(np.repeat(np.arange(n_ep), rows.shape[1] * 2), cnt)
+    row = np.repeat(rows.reshape(-1), cnt)
+    offs = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    col = (np.repeat(first.reshape(-1), cnt) + offs) % refl.n_lon
+    n = refl.normals_ecef[row, col]
+    v = r_sat[ep] - refl.radius_m * n                          # cell -> satellite
+    d2 = np.einsum("ij,ij->i", v, v)
+    inv_d = 1.0 / np.sqrt(d2)
+    cos_out = np.einsum("ij,ij->i", v, n) * inv_d
+    cos_in = np.einsum("ij,ij->i", sun_unit[ep], n)
+    w = refl.weights_m2[row, col] * np.maximum(cos_in, 0.0) * np.maximum(cos_out, 0.0) * inv_d ** 2
+    e_body = np.einsum("nij,nj->ni", R_body_from_ecef[ep], -v * inv_d[:, None])
+    for k in range(K):
+        d_diode = e_body @ frames[k].T
+        out[:, k] = np.bincount(ep, weights=w * responses[k].response(d_diode), minlength=n_ep)
+    return out
+
+
+class _DrJitOps:
+    def __init__(self, dr, tiny):
+        self.maximum = dr.maximum
+        self.minimum = dr.minimum
+        self.where = dr.select
+        self.tiny = tiny
+
+
+def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision):
+    """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, from one Dr.Jit LLVM kernel."""
+    import drjit as dr  # simcore (imported above) has pointed Dr.Jit at a working libLLVM
+    from drjit.llvm import Float, Float64, UInt32
+
+    F = Float if precision == "single" else Float64
+    np_f = np.float32 if precision == "single" else np.float64
+    n_ep, K = r_sat.shape[0], frames.shape[0]
+    rows, first, count = cell_runs(r_sat, sun_unit, refl)
+    W = rows.shape[1]
+    # Lane order (piece, epoch, row): second pieces are mostly empty and then fill whole SIMD packets.
+    lane_row = UInt32(np.ascontiguousarray(rows.transpose(2, 0, 1)).reshape(-1).astype(np.uint32))
+    lane_first = UInt32(np.ascontiguousarray(first.transpose(2, 0, 1)).reshape(-1).astype(np.uint32))
+    lane_count = UInt32(np.ascontiguousarray(count.transpose(2, 0, 1)).reshape(-1).astype(np.uint32))
+    n_lanes = 2 * n_ep * W
+    lane_ep = dr.arange(UInt32, n_lanes) // W % n_ep
+
+    def table(a):
+        return F(np.ascontiguousarray(a, dtype=np_f).reshape(-1))
+
+    def per_epoch(a):
+        return dr.gather(F, table(a), lane_ep)
+
+    sx, sy, sz = (per_epoch(r_sat[:, i]) for i in range(3))
+    ux, uy, uz = (per_epoch(sun_unit[:, i]) for i in range(3))
+    M = [per_epoch(R_body_from_ecef[:, i, j]) for i in range(3) for j in range(3)]
+    lat = np.radians(refl.lat_deg)
+    slat = dr.gather(F, table(np.sin(lat)), lane_row)
+    clat = dr.gather(F, table(np.cos(lat)), lane_row)
+    lon = np.radians(refl.lon_deg)
+    cos_lon, sin_lon = table(np.cos(lon)), table(np.sin(lon))
+    weights = table(refl.weights_m2)
+    radius = float(refl.radius_m)
+    n_lon = refl.n_lon
+    fr = frames.tolist()
+    ops = _DrJitOps(dr, 1e-30 if precision == "single" else 1e-300)
+    kernels = [_resp.kernel(r) for r in responses]
+    base = lane_row * n_lon
+
+    def cond(t, *acc):
+        return t < lane_count
+
+    def body(t, *acc):
+        j = lane_first + t
+        j = dr.select(j >= n_lon, j - n_lon, j)
+        cj, sj = dr.gather(F, cos_lon, j), dr.gather(F, sin_lon, j)
+        w = dr.gather(F, weights, base + j)
+        nx, ny, nz = clat * cj, clat * sj, slat
+        vx, vy, vz = sx - radius * nx, sy - radius * ny, sz - radius * nz
+        inv_d = dr.rsqrt(vx * vx + vy * vy + vz * vz)
+        cos_out = (vx * nx + vy * ny + vz * nz) * inv_d
+        cos_in = ux * nx + uy * ny + uz * nz
+        wt = w * dr.maximum(cos_in, 0.0) * dr.maximum(cos_out, 0.0) * inv_d * inv_d
+        ex, ey, ez = -vx * inv_d, -vy * inv_d, -vz * inv_d
+        bx = M[0] * ex + M[1] * ey + M[2] * ez
+        by = M[3] * ex + M[4] * ey + M[5] * ez
+        bz = M[6] * ex + M[7] * ey + M[8] * ez
+        new = []
+        for k in range(K):
+            f = fr[k]
+            du = f[0][0] * bx + f[0][1] * by + f[0][2] * bz
+            dv = f[1][0] * bx + f[1][1] * by + f[1][2] * bz
+            dn = f[2][0] * bx + f[2][1] * by + f[2][2] * bz
+            new.append(acc[k] + wt * kernels[k](du, dv, dn, ops))
+        return (t + 1, *new)
+
+    state = (dr.zeros(UInt32, n_lanes), *[dr.zeros(F, n_lanes) for _ in range(K)])
+    _, *acc = dr.while_loop(state=state, cond=cond, body=body)
+    dr.eval(*acc)
+    out = np.empty((n_ep, K))
+    for k in range(K):
+        out[:, k] = np.asarray(acc[k].numpy(), dtype=np.float64).reshape(2, n_ep, W).sum(axis=(0, 2))
+    return out
+
+
+# ---- public entry point ---------------------------------------------------------------------
+def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_body, responses, *,
+                     map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
+                     albedo=True, backend="auto", precision="single", batch_epochs=4096):
+    """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`DiodeIrradiance`.
+
+    ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
+    ``e_sun_w_m2``: solar constant, times (1 AU / distance)^2 when ``distance_scaling``;
+    ``R_ecef_from_body``: (N, 3, 3) (or (3, 3)); ``diode_frames_body``: (K, 3, 3),
+    rows (u, v, n) of each diode in the body frame; ``responses``: one response
+    for all diodes or K of them (:mod:`simcore.response`,
+    :class:`simcore.aperture.WellAperture`). ``map``: reflectivity map (None:
+    TOMS 2005). ``eclipse``: 'cylindrical' (thesis sec. 4.1.4), 'conical'
+    (penumbra) or None; it dims the direct Sun only. ``albedo=False`` skips
+    the Earth. ``backend``: 'drjit' (LLVM kernel, ``precision`` 'single' or
+    'double'), 'numpy' (float64, any response object) or 'auto' (drjit when
+    every response has a kernel form).
+    """
+    r_sat = _rows("r_sat_ecef_m", r_sat_ecef_m)
+    r_sun = _rows("r_sun_ecef_m", r_sun_ecef_m)
+    if r_sun.shape[0] == 1 and r_sat.shape[0] > 1:
+        r_sun = np.broadcast_to(r_sun, r_sat.shape)
+    if r_sun.shape != r_sat.shape:
+        raise ValueError(f"r_sat_ecef_m has {r_sat.shape[0]} epochs and r_sun_ecef_m {r_sun.shape[0]}; "
+                         "give both with the same N (or the Sun as one (3,) vector)")
+    n_ep = r_sat.shape[0]
+    R = _rotations(R_ecef_from_body, n_ep)
+    frames = _frames(diode_frames_body)
+    resps = _responses(responses, frames.shape[0])
+    refl = as_map(map)
+    if eclipse not in ("cylindrical", "conical", None):
+        raise ValueError(f"eclipse must be 'cylindrical', 'conical' or None, got {eclipse!r}")
+    if precision not in ("single", "double"):
+        raise ValueError(f"precision must be 'single' or 'double', got {precision!r}")
+    if backend not in ("auto", "drjit", "numpy"):
+        raise ValueError(f"backend must be 'auto', 'drjit' or 'numpy', got {backend!r}")
+    if backend == "auto":
+        backend = "drjit" if all(isinstance(r, _resp.WellAperture) or hasattr(r, "kernel") for r in resps) \
+            else "numpy"
+    if backend == "drjit":
+        for r in resps:
+            _resp.kernel(r)          # raises TypeError for a response without a kernel form
+    check_geometry(r_sat, r_sun, refl.radius_m)
+    e_sun = sun_irradiance_w_m2(r_sun, e_sun_w_m2, distance_scaling)
+
+    # Direct Sun: satellite -> Sun direction, eclipse factor.
+    if eclipse == "cylindrical":
+        lit = _eclipse.cylindrical(r_sat, r_sun, refl.radius_m).astype(float)
+    elif eclipse == "conical":
+        lit = np.asarray(_eclipse.conical(r_sat, r_sun, refl.radius_m, R_SUN_M), dtype=float)
+    else:
+        lit = np.ones(n_ep)
+    to_sun = r_sun - r_sat
+    to_sun = to_sun / np.linalg.norm(to_sun, axis=1)[:, None]
+    R_body_from_ecef = np.ascontiguousarray(np.swapaxes(R, 1, 2))
+    sun_body = np.einsum("nij,nj->ni", R_body_from_ecef, to_sun)
+    direct = np.stack([r.response(sun_body @ f.T) for r, f in zip(resps, frames)], axis=1)
+    # 1/r^2 for the direct Sun over the satellite -> Sun distance; the Earth's cells use the geocentric one.
+    e_direct = sun_irradiance_w_m2(r_sun - r_sat, e_sun_w_m2, distance_scaling)
+    direct = direct * (e_direct * lit)[:, None]
+
+    alb = np.zeros((n_ep, frames.shape[0]))
+    if albedo:
+        sun_unit = r_sun / np.linalg.norm(r_sun, axis=1)[:, None]
+        batch = max(1, int(batch_epochs))
+        if backend == "numpy":
+            batch = min(batch, 256)      # numpy holds every (epoch, cell) pair of a batch in memory
+        for s in range(0, n_ep, batch):
+            sl = slice(s, min(n_ep, s + batch))
+            if backend == "drjit":
+                alb[sl] = _albedo_drjit(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl,
+                                        precision)
+            else:
+                alb[sl] = _albedo_numpy(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl)
+        alb *= (e_sun / np.pi)[:, None]
+    return DiodeIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit)

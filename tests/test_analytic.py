@@ -1,0 +1,228 @@
+"""Analytic diode irradiance: direct Sun + albedo over N epochs x K diodes, both backends."""
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+import simcore  # noqa: F401  (Dr.Jit's libLLVM before drjit)
+from simcore.albedo import albedo_cells
+from simcore.analytic import cell_runs, diode_irradiance
+from simcore.aperture import WellAperture, diode_frame
+from simcore.constants import R_EARTH_MEAN_M
+from simcore.maps import ReflectivityMap
+from simcore.response import CosineResponse, Eq415Response, ReflectionResponse
+
+R = R_EARTH_MEAN_M
+E_SUN = 1366.1
+SUN_DIST = 1.496e11
+
+
+def _unit(v):
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _random_rotations(rng, n):
+    q, r = np.linalg.qr(rng.normal(size=(n, 3, 3)))
+    q = q * np.sign(np.diagonal(r, axis1=1, axis2=2))[:, None, :]
+    return q * np.sign(np.linalg.det(q))[:, None, None]
+
+
+def _orbit(rng, n=120, altitude_m=668e3):
+    """A circular orbit (inclined 98 deg) with a tumbling attitude and a fixed Sun, ECEF."""
+    t = np.linspace(0, 5800, n)
+    inc = np.radians(98.0)
+    ang = 2 * np.pi * t / 5900
+    r = (R + altitude_m) * np.stack([np.cos(ang), np.sin(ang) * np.cos(inc), np.sin(ang) * np.sin(inc)], axis=1)
+    sun = SUN_DIST * _unit(np.array([0.6, -0.5, 0.3]))
+    return r, np.broadcast_to(sun, r.shape).copy(), _random_rotations(rng, n)
+
+
+def _tilt_frames(tilt_deg=20):
+    """The 14 diode frames of SPEC sec. 5 (thesis sec. 3.2.4)."""
+    x = tilt_deg
+    out = []
+    for phi_p, pat in ((0, [(-1, -1), (0, 1), (1, -1)]), (90, [(-1, 1), (0, -1), (1, 1)]),
+                       (180, [(-1, -1), (0, 1), (1, -1)]), (270, [(-1, 1), (0, -1), (1, 1)])):
+        for s_az, s_el in pat:
+            az, el = np.radians(phi_p + s_az * x), np.radians(s_el * x)
+            out.append([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    out += [[0, 0, 1.0], [0, 0, -1.0]]
+    return np.stack([diode_frame(n) for n in out])
+
+
+def test_shapes_and_single_epoch(rng):
+    r, s, rot = _orbit(rng, 7)
+    frames = _tilt_frames()
+    out = diode_irradiance(r, s, rot, frames, WellAperture.design(70))
+    assert out.direct_w_m2.shape == (7, 14) and out.albedo_w_m2.shape == (7, 14)
+    assert out.illuminated_fraction.shape == (7,)
+    np.testing.assert_allclose(out["total_w_m2"], out.direct_w_m2 + out.albedo_w_m2)
+    one = diode_irradiance(r[3], s[3], rot[3], frames, WellAperture.design(70))
+    np.testing.assert_allclose(one.albedo_w_m2[0], out.albedo_w_m2[3], rtol=1e-6)
+    np.testing.assert_allclose(one.direct_w_m2[0], out.direct_w_m2[3], rtol=1e-12)
+
+
+def test_bare_diode_facing_the_sun_reads_e_sun_cos(rng):
+    # conventions.md: a bare diode facing the Sun at angle theta reads E_sun cos(theta).
+    r_sat = np.array([[R + 700e3, 0.0, 0.0]])
+    r_sun = np.array([[SUN_DIST, 0.0, 0.0]])
+    to_sun = _unit(r_sun - r_sat)[0]
+    for theta in (0.0, 25.0, 60.0, 89.0, 100.0):
+        axis = _unit(np.cross(to_sun, [0.0, 0.3, 1.0]))
+        t = np.radians(theta)
+        n = np.cos(t) * to_sun + np.sin(t) * axis       # normal at theta from the Sun (identity attitude)
+        out = diode_irradiance(r_sat, r_sun, np.eye(3), diode_frame(n)[None], WellAperture.bare(),
+                               eclipse="cylindrical", albedo=False)
+        assert out.direct_w_m2[0, 0] == pytest.approx(E_SUN * max(np.cos(t), 0.0), rel=1e-12, abs=1e-9)
+        far = diode_irradiance(r_sat, r_sun, np.eye(3), diode_frame(n)[None], WellAperture.bare(),
+                               albedo=False, distance_scaling=True)
+        # Inverse-square law over the satellite -> Sun distance, 1 AU = 149 597 870 700 m (IAU 2012 B2).
+        scale = (149_597_870_700.0 / (SUN_DIST - R - 700e3)) ** 2
+        assert far.direct_w_m2[0, 0] == pytest.approx(E_SUN * scale * max(np.cos(t), 0.0), rel=1e-12, abs=1e-9)
+
+
+def test_eclipse_dims_the_direct_sun_only():
+    sun = SUN_DIST * _unit(np.array([1.0, 0.2, 0.0]))
+    deep = -(R + 668e3) * _unit(sun)                    # anti-solar: deep in the umbra
+    frames = _tilt_frames()
+    for mode in ("cylindrical", "conical"):
+        out = diode_irradiance(deep, sun, np.eye(3), frames, CosineResponse(), eclipse=mode)
+        assert out.illuminated_fraction[0] == 0.0
+        assert np.all(out.direct_w_m2 == 0.0) and np.all(out.albedo_w_m2 == 0.0)
+    # Around a whole orbit: the eclipse factor touches only the direct part. Inside the shadow cylinder
+    # no sunlit cell centre is visible (the cylinder's edge is the horizon ray grazing the terminator:
+    # for |r_perp| < R and r . s < 0, c . r < R for every c with c . s > 0), so the albedo is 0 there too.
+    r, s, rot = _orbit(np.random.default_rng(5), 200)
+    lit = diode_irradiance(r, s, rot, frames, CosineResponse(), eclipse="cylindrical")
+    free = diode_irradiance(r, s, rot, frames, CosineResponse(), eclipse=None)
+    shadow = lit.illuminated_fraction == 0
+    assert 20 < shadow.sum() < 180
+    np.testing.assert_array_equal(lit.albedo_w_m2, free.albedo_w_m2)
+    assert np.all(lit.direct_w_m2[shadow] == 0) and free.direct_w_m2[shadow].max() > 1000
+    assert np.all(lit.albedo_w_m2[shadow] == 0)
+    np.testing.assert_array_equal(lit.direct_w_m2[~shadow], free.direct_w_m2[~shadow])
+
+
+def nadir_cap_irradiance(r_m, rho, e_sun=E_SUN, radius=R):
+    """Irradiance on a nadir-facing cosine plate above a uniform Lambertian sphere, Sun behind the plate.
+
+    Independent 1-D form: a surface point at mu = cos(gamma) has incidence cos mu, exit cos
+    (r mu - R)/|v|, and is seen at cos(psi) = (r - R mu)/|v| off nadir, |v|^2 = r^2 + R^2 - 2 r R mu:
+    E = rho E_sun / pi * 2 pi R^2 * int_{R/r}^1 mu (r mu - R)(r - R mu) / |v|^4 dmu.
+    """
+    def f(mu):
+        return mu * (r_m * mu - radius) * (r_m - radius * mu) / (r_m ** 2 + radius ** 2 - 2 * r_m * radius * mu) ** 2
+
+    return rho * e_sun / np.pi * 2 * np.pi * radius ** 2 * quad(f, radius / r_m, 1, epsabs=0, epsrel=1e-12)[0]
+
+
+@pytest.mark.parametrize("backend, precision, rtol", [("numpy", "double", 2e-4), ("drjit", "double", 2e-4),
+                                                       ("drjit", "single", 3e-4)])
+def test_nadir_plate_matches_the_lambert_cap_integral(backend, precision, rtol, rng):
+    m = ReflectivityMap.from_array(np.full((180, 288), 0.3))
+    u = _unit(rng.normal(size=(4, 3)))
+    for altitude in (668e3, 3000e3):
+        r_sat = (R + altitude) * u
+        r_sun = SUN_DIST * u
+        frames = np.stack([diode_frame(-v) for v in u])        # body = ECEF; diode k faces nadir at epoch k
+        out = diode_irradiance(r_sat, r_sun, np.eye(3), frames, CosineResponse(), map=m, backend=backend,
+                               precision=precision, eclipse=None)
+        np.testing.assert_allclose(np.diag(out.albedo_w_m2), nadir_cap_irradiance(R + altitude, 0.3), rtol=rtol)
+
+
+def test_cosine_diodes_sum_the_albedo_cells(rng):
+    # The same physics through simcore.albedo: sum_c E_c max(0, n . e_c).
+    r, s, rot = _orbit(rng, 6)
+    frames = _tilt_frames()
+    toms = ReflectivityMap.toms2005()
+    out = diode_irradiance(r, s, rot, frames, CosineResponse(), map=toms, backend="drjit", precision="double")
+    for i in range(len(r)):
+        cells = albedo_cells(r[i], s[i], toms)
+        e = _unit(toms.centres_ecef_m - r[i]) @ rot[i]             # body-frame directions to the cells
+        expected = [np.sum(cells * np.maximum(e @ f[2], 0.0)) for f in frames]
+        np.testing.assert_allclose(out.albedo_w_m2[i], expected, rtol=1e-9, atol=1e-12)
+
+
+def test_backends_agree_for_every_response(rng):
+    r, s, rot = _orbit(rng, 40)
+    frames = _tilt_frames()
+    resp = [WellAperture.design(70)] * 10 + [Eq415Response(70), ReflectionResponse(-0.25), CosineResponse(),
+                                             WellAperture.design(75)]
+    ref = diode_irradiance(r, s, rot, frames, resp, backend="numpy")
+    dbl = diode_irradiance(r, s, rot, frames, resp, backend="drjit", precision="double", batch_epochs=7)
+    sgl = diode_irradiance(r, s, rot, frames, resp, backend="drjit", precision="single")
+    scale = ref.albedo_w_m2.max()
+    assert scale > 10
+    np.testing.assert_allclose(dbl.albedo_w_m2, ref.albedo_w_m2, rtol=1e-10, atol=1e-12 * scale)
+    np.testing.assert_allclose(sgl.albedo_w_m2, ref.albedo_w_m2, rtol=1e-4, atol=1e-6 * scale)
+    np.testing.assert_array_equal(dbl.direct_w_m2, ref.direct_w_m2)
+
+
+def test_cell_runs_are_exactly_the_visible_sunlit_cells(rng):
+    toms = ReflectivityMap.toms2005()
+    r_sat = (R + rng.uniform(300e3, 40000e3, size=30))[:, None] * _unit(rng.normal(size=(30, 3)))
+    r_sat[0] = [0, 0, R + 668e3]                                # over the pole: rows all around
+    sun = _unit(rng.normal(size=(30, 3)))
+    rows, first, count = cell_runs(r_sat, sun, toms)
+    n = toms.normals_ecef
+    for i in range(30):
+        got = np.zeros(toms.shape, dtype=int)
+        for row, f, c in zip(rows[i].ravel(), first[i].ravel(), count[i].ravel()):
+            got[row, (f + np.arange(c)) % toms.n_lon] += 1
+        expected = (n @ r_sat[i] > R) & (n @ sun[i] > 0)
+        assert got.max() <= 1                                    # no cell twice
+        np.testing.assert_array_equal(got.astype(bool), expected)
+
+
+def test_rotating_everything_together_changes_nothing(rng):
+    # Turning Earth (a uniform map: by whole grid columns), Sun, satellite and attitude together about z.
+    m = ReflectivityMap.from_array(np.full((180, 288), 0.25))
+    r, s, rot = _orbit(rng, 12)
+    frames = _tilt_frames()
+    ang = np.radians(53 * m.dlon_deg)
+    Rz = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]])
+    a = diode_irradiance(r, s, rot, frames, WellAperture.design(70), map=m, precision="double")
+    b = diode_irradiance(r @ Rz.T, s @ Rz.T, Rz @ rot, frames, WellAperture.design(70), map=m, precision="double")
+    np.testing.assert_allclose(b.albedo_w_m2, a.albedo_w_m2, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(b.direct_w_m2, a.direct_w_m2, rtol=1e-9, atol=1e-9)
+
+
+class _Custom:
+    """A response with only the numpy method: runs on the numpy backend."""
+
+    def response(self, d):
+        return np.maximum(np.asarray(d)[..., 2], 0.0) ** 2
+
+
+def test_custom_response_objects_use_numpy(rng):
+    r, s, rot = _orbit(rng, 5)
+    out = diode_irradiance(r, s, rot, _tilt_frames()[:3], _Custom())
+    assert out.albedo_w_m2.shape == (5, 3) and np.all(out.albedo_w_m2 >= 0)
+    with pytest.raises(TypeError, match="no kernel form"):
+        diode_irradiance(r, s, rot, _tilt_frames()[:3], _Custom(), backend="drjit")
+
+
+def test_bad_input(rng):
+    r, s, rot = _orbit(rng, 4)
+    frames = _tilt_frames()
+    ap = WellAperture.design(70)
+    with pytest.raises(ValueError, match="inside the Earth"):
+        diode_irradiance(r * 0.5, s, rot, frames, ap)
+    bad = r.copy()
+    bad[2, 1] = np.nan
+    with pytest.raises(ValueError, match="non-finite rows"):
+        diode_irradiance(bad, s, rot, frames, ap)
+    with pytest.raises(ValueError, match="not outside the Earth"):
+        diode_irradiance(r, np.zeros(3), rot, frames, ap)
+    with pytest.raises(ValueError, match="rotation matrices"):
+        diode_irradiance(r, s, rot * 2, frames, ap)
+    with pytest.raises(ValueError, match=r"\(N, 3, 3\)"):
+        diode_irradiance(r, s, rot[:2], frames, ap)
+    with pytest.raises(ValueError, match="one per diode"):
+        diode_irradiance(r, s, rot, frames, [ap, ap])
+    with pytest.raises(ValueError, match=r"\(K, 3, 3\)"):
+        diode_irradiance(r, s, rot, frames[:, :2], ap)
+    with pytest.raises(ValueError, match="eclipse"):
+        diode_irradiance(r, s, rot, frames, ap, eclipse="umbra")
+    with pytest.raises(ValueError, match="negative"):
+        diode_irradiance(r, s, rot, frames, ap, map=np.full((180, 288), -1.0))
