@@ -37,6 +37,7 @@ from simcore import response as _resp
 from simcore.albedo import check_geometry, sun_irradiance_w_m2
 from simcore.constants import E_SUN_W_M2, R_SUN_M
 from simcore.maps import as_map
+from simcore.occlusion import box_hit, direct_visibility
 
 _TWO_PI = 2.0 * np.pi
 
@@ -190,7 +191,7 @@ def cell_runs(r_sat_m, sun_unit, refl):
 
 
 # ---- the albedo sums ---------------------------------------------------------------------
-def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl):
+def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy."""
     n_ep, K = r_sat.shape[0], frames.shape[0]
     out = np.zeros((n_ep, K))
@@ -212,7 +213,10 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl):
     e_body = np.einsum("nij,nj->ni", R_body_from_ecef[ep], -v * inv_d[:, None])
     for k in range(K):
         d_diode = e_body @ frames[k].T
-        out[:, k] = np.bincount(ep, weights=w * responses[k].response(d_diode), minlength=n_ep)
+        a = responses[k].response(d_diode)
+        if body is not None:
+            a = np.where(box_hit(body.positions_m[k], e_body, body.half_m), 0.0, a)
+        out[:, k] = np.bincount(ep, weights=w * a, minlength=n_ep)
     return out
 
 
@@ -224,7 +228,7 @@ class _DrJitOps:
         self.tiny = tiny
 
 
-def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision):
+def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, from one Dr.Jit LLVM kernel."""
     import drjit as dr  # simcore (imported above) has pointed Dr.Jit at a working libLLVM
     from drjit.llvm import Float, Float64, UInt32
@@ -287,7 +291,10 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             du = f[0][0] * bx + f[0][1] * by + f[0][2] * bz
             dv = f[1][0] * bx + f[1][1] * by + f[1][2] * bz
             dn = f[2][0] * bx + f[2][1] * by + f[2][2] * bz
-            new.append(acc[k] + wt * kernels[k](du, dv, dn, ops))
+            a = kernels[k](du, dv, dn, ops)
+            if body_box is not None:
+                a = dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a)
+            new.append(acc[k] + wt * a)
         return (t + 1, *new)
 
     state = (dr.zeros(UInt32, n_lanes), *[dr.zeros(F, n_lanes) for _ in range(K)])
@@ -299,10 +306,82 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     return out
 
 
+def _box_hit_dr(dr, origin, d, half):
+    """Slab test in a Dr.Jit kernel: does the ray origin + t d (t > 0) hit the box [-half, half]?
+    ``origin`` and ``half`` are Python floats (baked into the kernel), ``d`` Dr.Jit arrays."""
+    t_in, t_out = None, None
+    for o, di, h in zip(map(float, origin), d, map(float, half)):
+        safe = dr.select(dr.abs(di) > 1e-12, di, 1e-12)
+        t1, t2 = (-h - o) / safe, (h - o) / safe
+        lo, hi = dr.minimum(t1, t2), dr.maximum(t1, t2)
+        t_in = lo if t_in is None else dr.maximum(t_in, lo)
+        t_out = hi if t_out is None else dr.minimum(t_out, hi)
+    return (t_in <= t_out) & (t_out > 0)
+
+
+@dataclass(frozen=True)
+class BodyBox:
+    """The satellite body as an occluding box: half extents (3,) and the diodes' centres (K, 3),
+    body frame, metres; ``panel_normals`` (K, 3) the outward normals of the panels they sit on."""
+
+    half_m: tuple
+    positions_m: np.ndarray
+    panel_normals: np.ndarray
+
+    @classmethod
+    def from_config(cls, config):
+        """Return the body box of a ``scenes.config.SatelliteConfig``."""
+        from scenes.config import panel_axes
+        return cls(tuple(float(x) / 2 for x in config.body.size_m), np.asarray(config.positions_m, float),
+                   np.array([panel_axes(d.panel)[0] for d in config.diodes], float))
+
+
+def solar_disc_offsets(radius_rad, rings=3):
+    """Return (M, 2) tangent-plane offsets (rad) and (M,) equal weights covering the solar disc in
+    equal-area cells: the centre and rings of 6, 12, 18 ... points (1 + 3 r (r + 1) in all)."""
+    total = 1 + 3 * rings * (rings + 1)
+    edge2 = [(1 + 3 * i * (i + 1)) / total for i in range(rings + 1)]   # squared ring boundaries / r^2
+    pts = [(0.0, 0.0)]
+    for i in range(1, rings + 1):
+        rad = radius_rad * np.sqrt(0.5 * (edge2[i - 1] + edge2[i]))     # the middle of the annulus by area
+        m = 6 * i
+        ang = 2 * np.pi * (np.arange(m) + 0.5 * (i % 2)) / m
+        pts += list(zip(rad * np.cos(ang), rad * np.sin(ang)))
+    return np.array(pts)
+
+
+def _disc_directions(sun_body, offsets):
+    """Return (M, N, 3) unit directions across the solar disc around each Sun direction (N, 3)."""
+    s = sun_body
+    helper = np.where(np.abs(s[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+    e1 = np.cross(s, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(s, e1)
+    d = s[None] + offsets[:, :1, None] * e1[None] + offsets[:, 1:, None] * e2[None]
+    return d / np.linalg.norm(d, axis=2, keepdims=True)
+
+
+def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad):
+    """Return the direct-Sun response (N, K): the aperture response, times the body box's visibility,
+    averaged over the solar disc when it has a radius (its shadow edges are then soft, as traced)."""
+    offsets = solar_disc_offsets(sun_angular_radius_rad) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
+    dirs = _disc_directions(sun_body, offsets)
+    resp = np.stack([np.mean([r.response(d @ f.T) for d in dirs], axis=0) for r, f in zip(resps, frames)], axis=1)
+    if body is None:
+        return resp
+    if not all(isinstance(r, _resp.WellAperture) for r in resps):
+        raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture responses")
+    vis = [direct_visibility(resps, frames, body.positions_m, body.panel_normals, d, body.half_m) for d in dirs]
+    lit = np.stack([np.mean([r.response(d @ f.T) * v[:, k] for d, v in zip(dirs, vis)], axis=0)
+                    for k, (r, f) in enumerate(zip(resps, frames))], axis=1)
+    return lit
+
+
 # ---- public entry point ---------------------------------------------------------------------
 def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_body, responses, *,
                      map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
-                     albedo=True, backend="auto", precision="single", batch_epochs=4096):
+                     albedo=True, backend="auto", precision="single", batch_epochs=4096, body=None,
+                     sun_angular_radius_rad=0.0):
     """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`DiodeIrradiance`.
 
     ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
@@ -315,7 +394,11 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     (penumbra) or None; it dims the direct Sun only. ``albedo=False`` skips
     the Earth. ``backend``: 'drjit' (LLVM kernel, ``precision`` 'single' or
     'double'), 'numpy' (float64, any response object) or 'auto' (drjit when
-    every response has a kernel form).
+    every response has a kernel form). ``body``: a :class:`BodyBox`, the
+    satellite body as an occluder (:mod:`simcore.occlusion`): exact for the
+    direct Sun (needs well apertures as responses), the diode centre for albedo.
+    ``sun_angular_radius_rad``: > 0 averages the direct response over the solar
+    disc (37 equal-area points), as a renderer with a finite Sun sees it.
     """
     r_sat = _rows("r_sat_ecef_m", r_sat_ecef_m)
     r_sun = _rows("r_sun_ecef_m", r_sun_ecef_m)
@@ -355,7 +438,7 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     to_sun = to_sun / np.linalg.norm(to_sun, axis=1)[:, None]
     R_body_from_ecef = np.ascontiguousarray(np.swapaxes(R, 1, 2))
     sun_body = np.einsum("nij,nj->ni", R_body_from_ecef, to_sun)
-    direct = np.stack([r.response(sun_body @ f.T) for r, f in zip(resps, frames)], axis=1)
+    direct = _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad)
     # 1/r^2 for the direct Sun over the satellite -> Sun distance; the Earth's cells use the geocentric one.
     e_direct = sun_irradiance_w_m2(r_sun - r_sat, e_sun_w_m2, distance_scaling)
     direct = direct * (e_direct * lit)[:, None]
@@ -370,8 +453,8 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
             sl = slice(s, min(n_ep, s + batch))
             if backend == "drjit":
                 alb[sl] = _albedo_drjit(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl,
-                                        precision)
+                                        precision, body)
             else:
-                alb[sl] = _albedo_numpy(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl)
+                alb[sl] = _albedo_numpy(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl, body)
         alb *= (e_sun / np.pi)[:, None]
     return DiodeIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit)

@@ -82,20 +82,89 @@ def cmd_summary(args):
     return 0
 
 
+def _add_render_options(p):
+    p.add_argument("--config", default="tilt20_fov70", metavar="NAME_OR_TOML",
+                   help="satellite configuration: a shipped name (tilt0_fov90, tilt{20,25,30}_fov{70,75}) "
+                        "or a .toml file (scenes/FORMAT.md); default %(default)s")
+    p.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz (overrides the tumble)")
+    p.add_argument("--accuracy", nargs=2, type=float, metavar=("DIRECT", "ALBEDO"), default=(0.002, 0.01),
+                   help="target relative standard errors of direct and albedo irradiance (default 0.002 0.01)")
+    p.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"),
+                   help="fixed samples per diode-epoch instead of --accuracy (direct: a power of 4)")
+    p.add_argument("--dead", type=int, nargs="*", default=[], metavar="I", help="dead diode indices")
+    p.add_argument("--map", default="toms2005", help="reflectivity map: toms2005, ceres2018-all, "
+                   "ceres2018-clear or a .npz file (default %(default)s)")
+    p.add_argument("--point-sun", action="store_true", help="a point Sun (no penumbra) instead of the 0.53 deg disc")
+    p.add_argument("--variant", choices=["llvm_ad_mono", "cuda_ad_mono"],
+                   help="Mitsuba variant (default: cuda_ad_mono when a GPU works, else llvm_ad_mono)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same numbers)")
+    p.add_argument("--chunk", type=int, default=512, metavar="EPOCHS", help="epochs per stored chunk")
+    p.add_argument("-o", "--output", default="runs/default.nc", metavar="FILE.nc",
+                   help="output netCDF file (default %(default)s)")
+
+
+def run_options(args):
+    """Return the simcore.run.RunOptions of parsed ``run`` arguments."""
+    from simcore.run import RunOptions
+    samples = args.samples
+    return RunOptions(
+        config=args.config, tle=args.tle, satellite=args.satellite, start=args.start, duration_s=args.duration,
+        step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude,
+        rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
+        direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
+        dead=tuple(args.dead), variant=args.variant, seed=args.seed, reflectivity=args.map,
+        sun_disc=not args.point_sun, chunk_epochs=args.chunk, output=args.output,
+        fail_on_check=args.fail_on_check)
+
+
+def cmd_run(args):
+    """Render a study, check it against the analytic model, write the netCDF file."""
+    import os
+    import time
+    from simcore.run import execute
+    opts = run_options(args)
+    if opts.output == "runs/default.nc":
+        os.makedirs("runs", exist_ok=True)
+    t0 = time.perf_counter()
+    path, ds, report = execute(opts, log=lambda m: print(m, file=sys.stderr))
+    elapsed = time.perf_counter() - t0
+    out = {"output": os.path.abspath(path), "configuration": ds.attrs["configuration"],
+           "epochs": int(ds.sizes["time"]), "diodes": int(ds.sizes["diode"]), "seconds": round(elapsed, 1),
+           "variant": ds.attrs["variant"], "check": report}
+    if args.json:
+        print(json.dumps(out))
+    else:
+        irr = ds.irradiance
+        print(f"sunsim run: {out['configuration']}, {out['epochs']} epochs x {out['diodes']} diodes "
+              f"in {elapsed:.1f} s ({ds.attrs['variant']})")
+        print(f"  mean irradiance: direct {float(irr.sel(component='direct').mean()):.1f} W/m^2, "
+              f"albedo {float(irr.sel(component='albedo').mean()):.1f} W/m^2")
+        verdict = "PASS" if report["pass"] else "FAIL"
+        print(f"  analytic check: {verdict}  direct outliers {report['direct_outliers']}/{report['direct_checked']}, "
+              f"albedo mean |z| {report['albedo_mean_abs_z']:.2f}, |z|>4 {report['albedo_share_abs_z_gt_4']:.2%} "
+              f"of {report['albedo_checked']}")
+        print(f"  output: {out['output']}")
+        print(f"  open it: xarray.open_dataset({path!r})")
+    return 1 if (args.fail_on_check and not report["pass"]) else 0
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {simcore.__version__}")
     sub = p.add_subparsers(dest="command")
 
-    s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study")
+    r = sub.add_parser("run", help="the main job: render a study (default: ESTCube-1, 2016-07-02, tilt20_fov70, "
+                                   "one orbit at 1 s), check it, write netCDF")
+    _add_orbit_options(r)
+    _add_render_options(r)
+    r.add_argument("--fail-on-check", action="store_true", help="exit status 1 when the analytic check fails")
+    r.add_argument("--json", action="store_true", help="machine-readable output")
+    r.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)
     s.add_argument("--json", action="store_true", help="machine-readable output")
     s.set_defaults(func=cmd_summary)
-
-    r = sub.add_parser("run", help="the main job: the default study (currently its orbit/Sun/eclipse summary)")
-    _add_orbit_options(r)
-    r.add_argument("--json", action="store_true", help="machine-readable output")
-    r.set_defaults(func=cmd_summary)
     return p
 
 
@@ -106,7 +175,7 @@ def main(argv=None):
         args = parser.parse_args(["run"] + list(argv or []))
     try:
         return args.func(args)
-    except (UserError, ValueError, TypeError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+    except (UserError, ValueError, TypeError, OSError) as exc:
         print(f"sunsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
