@@ -68,16 +68,21 @@ def hanning_mean_std(x, window=181):
     if v.ndim != 1:
         raise ValueError(f"x must be a 1-D time series (N,), got shape {v.shape}")
     w = hanning_window(window)
+    lead = (w.size - 1) // 2
+
+    def conv(a):
+        # centred and cut to len(v) also when the series is shorter than the window
+        return np.convolve(a, w, mode="full")[lead:lead + v.size]
     ok = np.isfinite(v)
     v0 = np.where(ok, v, 0.0)
-    sw = np.convolve(ok.astype(float), w, mode="same")
+    sw = conv(ok.astype(float))
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.convolve(v0, w, mode="same") / sw
+        mean = conv(v0) / sw
         # second moment about a per-window reference would be exact; the mean of the series
         # as reference already removes most of the cancellation for error time series
         ref = np.nanmean(v) if ok.any() else 0.0
         d0 = np.where(ok, v - ref, 0.0)
-        m2 = np.convolve(d0 * d0, w, mode="same") / sw
+        m2 = conv(d0 * d0) / sw
         var = m2 - (mean - ref) ** 2
     empty = sw <= 0.5 * w.min()
     mean[empty] = np.nan

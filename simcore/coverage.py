@@ -8,7 +8,6 @@ stands for mounting and data-sheet uncertainty, and makes the FOV 90 baseline
 show lines of red pixels on the panel planes). Each pixel is coloured red
 (<= 2 live diodes see it), yellow (exactly 3) or green (>= 4).
 """
-import warnings
 
 import numpy as np
 
@@ -83,38 +82,12 @@ def coverage_fractions(config_or_normals, fov_deg=None, dead=(), nside=NSIDE):
 
 
 def plot_coverage(config_or_normals, path, fov_deg=None, dead=(), nside=NSIDE, title=None):
-    """Write a Mollweide PNG of the coverage classes (body frame, pole = body z) and return its path.
-
-    Diode normals are marked: live ones as black dots with their index, dead ones as crosses.
-    Uses pyplot's current backend (Agg when headless; call ``matplotlib.use("Agg")`` first to force it).
-    """
-    import healpy as hp
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
-
+    """Write a Mollweide map of the coverage classes (body frame, pole = body z; PNG or PDF by suffix)
+    and return its path. Diode normals are marked: live ones with their index, dead ones as crosses."""
+    from simcore.plots import plot_coverage_map
     normals, fov, live = _normals_fov_dead(config_or_normals, fov_deg, dead)
     counts = coverage_map(config_or_normals, fov_deg, dead, nside)
-    cls = coverage_classes(counts).astype(float)
-    frac = {name: float(np.mean(cls == k)) for k, name in enumerate(CLASSES)}
     if title is None:
-        name = getattr(config_or_normals, "name", f"{len(normals)} diodes")
-        title = f"{name}: red {frac['red']:.4f}  yellow {frac['yellow']:.4f}  green {frac['green']:.4f}"
-    cmap = ListedColormap(["#d62728", "#ffd21f", "#2ca02c"])
-    with warnings.catch_warnings():
-        # healpy 1.20 calls Colormap.set_over/set_under, which newer matplotlib flags as pending deprecation
-        warnings.filterwarnings("ignore", message=r"The set_(over|under|bad) function", category=PendingDeprecationWarning)
-        hp.mollview(cls, cmap=cmap, min=-0.5, max=2.5, cbar=False, title=title, flip="geo")
-    fig = plt.gcf()
-    hp.graticule(dpar=30, dmer=45, color="0.3", alpha=0.5)
-    theta, phi = np.arccos(np.clip(normals[:, 2], -1, 1)), np.arctan2(normals[:, 1], normals[:, 0])
-    for k in range(len(normals)):
-        if live[k]:
-            hp.projscatter(theta[k], phi[k], color="k", s=14)
-            hp.projtext(theta[k], phi[k], f" {k}", color="k", fontsize=9)
-        else:
-            hp.projscatter(theta[k], phi[k], color="k", marker="x", s=40)
-    fig.text(0.5, 0.06, "body frame, Mollweide; centre = +x, pole = +z; azimuth increases to the right",
-             ha="center", fontsize=8)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+        title = getattr(config_or_normals, "name", f"{len(normals)} diodes")
+    plot_coverage_map(counts, title=title, normals_body=normals, dead=np.flatnonzero(~live), path=path)
     return path

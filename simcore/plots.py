@@ -253,19 +253,6 @@ def _diode_colours(k):
 
 # ----------------------------------------------------------------------------- estimator error
 
-def _hanning(e, window):
-    """Return the Hanning mean and STD (N,), (N,) of e, also for series shorter than the window.
-
-    NaN padding of half a window each side changes nothing (NaN samples and samples beyond
-    the ends are both dropped by :func:`hanning_mean_std`) and keeps the padded series at
-    least one window long, which np.convolve(mode="same") needs to return N samples.
-    """
-    h = int(window) // 2 if int(window) == window and window > 0 else 0
-    pad = np.full(h, np.nan)
-    mean, std = hanning_mean_std(np.concatenate([pad, e, pad]), window=window)
-    return mean[h:h + e.size], std[h:h + e.size]
-
-
 def plot_estimator_error(t_s, err_deg, *, window=181, sunlit=None, path=None, title=None,
                          ylabel="Sun vector angle error [deg]", time_unit=None):
     """Return a Figure of the estimator angle error (deg) over time, with Hanning-window mean and mean +- STD.
@@ -309,7 +296,7 @@ def plot_estimator_error(t_s, err_deg, *, window=181, sunlit=None, path=None, ti
         invalid = ~np.isfinite(e) if lit is None else (~np.isfinite(e) & lit)
         if lit is not None:
             e[~lit] = np.nan
-        mean, std = _hanning(e, window)
+        mean, std = hanning_mean_std(e, window=window)
         if lit is not None:
             mean[~lit] = np.nan
             std[~lit] = np.nan

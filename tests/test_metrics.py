@@ -134,3 +134,16 @@ def test_orbit_summary_on_hand_built_data():
     assert np.isnan(out["mean_deg"][2]) and np.isnan(out["p95_deg"][2]) and np.isnan(out["max_deg"][2])
     with pytest.raises(ValueError, match="same length"):
         orbit_summary(err, sunlit[:-1], orbit)
+
+
+def test_hanning_of_a_series_shorter_than_the_window_keeps_its_length():
+    # 20 samples under a 181-sample window: each output is the window-weighted mean of all 20
+    # samples with the weights centred on that sample (direct sum as the oracle).
+    from estimators.metrics import hanning_mean_std, hanning_window
+    x = np.arange(20.0) ** 1.5
+    mean, std = hanning_mean_std(x, window=181)
+    assert mean.shape == std.shape == (20,)
+    w = hanning_window(181)
+    for t in (0, 7, 19):
+        wt = w[90 + np.arange(20) - t]
+        assert mean[t] == pytest.approx(np.sum(wt * x) / wt.sum(), rel=1e-12)
