@@ -148,6 +148,86 @@ def cmd_run(args):
     return 1 if (args.fail_on_check and not report["pass"]) else 0
 
 
+def cmd_coverage(args):
+    """HEALPix coverage fractions (thesis figs. 3.7-3.13) and a Mollweide map per configuration."""
+    import os
+    from scenes.config import SatelliteConfig
+    from simcore.coverage import coverage_fractions, plot_coverage
+    results = []
+    for name in args.configs:
+        cfg = SatelliteConfig.load(name, dead=args.dead)
+        frac = coverage_fractions(cfg)
+        png = None
+        if not args.no_plot:
+            os.makedirs(args.plot_dir, exist_ok=True)
+            png = os.path.join(args.plot_dir, f"coverage_{cfg.name}" + (f"_dead{'-'.join(map(str, args.dead))}" if args.dead else "") + ".png")
+            plot_coverage(cfg, png)
+        results.append({"config": cfg.name, "dead": [int(i) for i in args.dead],
+                        **{k: round(float(v), 4) for k, v in frac.items()}, "map": png})
+    for r in results:
+        if args.json:
+            print(json.dumps(r))
+        else:
+            print(f"{r['config']:>14}  dead {r['dead'] or '-'}:  red {r['red']:.4f}  yellow {r['yellow']:.4f}  "
+                  f"green {r['green']:.4f}" + (f"   map: {r['map']}" if r["map"] else ""))
+    return 0
+
+
+def cmd_view(args):
+    """Render the scene picture: the CubeSat over the textured Earth in sunlight."""
+    from scenes.mitsuba_scene import picture
+    pic = picture(args.config, args.output, spp=args.spp, resolution=tuple(args.resolution))
+    print(json.dumps({"config": args.config, "picture": str(pic.path)}) if args.json else f"picture: {pic.path}")
+    return 0
+
+
+def cmd_validate(args):
+    """The rendered-vs-analytic report of a run file; exit status 1 outside tolerance."""
+    from simcore.run import check_run, open_run
+    ds = open_run(args.run)
+    flags, report = check_run(ds)
+    if args.json:
+        print(json.dumps({"run": args.run, **report}))
+    else:
+        print(f"{args.run}: {ds.attrs.get('configuration')}, {ds.sizes['time']} epochs x {ds.sizes['diode']} diodes")
+        print(f"  direct: {report['direct_outliers']} of {report['direct_checked']} diode-epochs outside "
+              f"max(0.5 % E_sun cos, 3 sigma) of the analytic aperture response "
+              f"(worst {report['direct_worst_abs_w_m2']:.3f} W/m^2)  -> {'pass' if report['direct_pass'] else 'FAIL'}")
+        print(f"  albedo: mean |z| {report['albedo_mean_abs_z']:.3f} (< 1), |z| > 4 in "
+              f"{report['albedo_share_abs_z_gt_4']:.3%} (< 0.3 %) of {report['albedo_checked']} diode-epochs above "
+              f"1 W/m^2, max |z| {report['albedo_max_abs_z']:.2f}  -> {'pass' if report['albedo_pass'] else 'FAIL'}")
+        print("  verdict: " + ("PASS" if report["pass"] else "FAIL"))
+    return 0 if report["pass"] else 1
+
+
+def cmd_estimate(args):
+    """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
+    import os
+    from simcore.evaluate import evaluate_run
+    from simcore.run import open_run
+    ds = open_run(args.run)
+    errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
+    if args.plots:
+        from simcore.plots import plot_estimator_error
+        os.makedirs(args.plots, exist_ok=True)
+        t = ds["t_s"].values
+        for name, e in errs.items():
+            plot_estimator_error(t, e["angle_deg"], sunlit=extra["sunlit"], title=f"{ds.attrs['configuration']}: {name}",
+                                 path=os.path.join(args.plots, f"error_{name}.png"))
+    if args.json:
+        print(json.dumps({"run": args.run, "table": table}))
+        return 0
+    print(f"{args.run}: {ds.attrs.get('configuration')}, sunlit Sun-vector angle error [deg]"
+          + (" (with sensor noise)" if args.noise else " (noise-free sensor chain)"))
+    print(f"  {'estimator':<20} {'orbit':>5} {'n':>6} {'invalid':>7} {'mean':>7} {'p95':>7} {'max':>7}")
+    for r in table:
+        print(f"  {r['estimator']:<20} {str(r['orbit']):>5} {r['n']:>6} {r['n_invalid']:>7} "
+              f"{r['mean_deg']:>7.2f} {r['p95_deg']:>7.2f} {r['max_deg']:>7.2f}")
+    if args.plots:
+        print(f"  plots: {args.plots}/error_*.png")
+    return 0
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {simcore.__version__}")
@@ -160,6 +240,36 @@ def build_parser():
     r.add_argument("--fail-on-check", action="store_true", help="exit status 1 when the analytic check fails")
     r.add_argument("--json", action="store_true", help="machine-readable output")
     r.set_defaults(func=cmd_run)
+
+    c = sub.add_parser("coverage", help="HEALPix coverage fractions red/yellow/green and a Mollweide map")
+    c.add_argument("configs", nargs="+", metavar="CONFIG", help="configuration names or .toml files")
+    c.add_argument("--dead", type=int, nargs="*", default=[], metavar="I", help="dead diode indices")
+    c.add_argument("--plot-dir", default=".", help="folder for the map PNGs (default: here)")
+    c.add_argument("--no-plot", action="store_true", help="fractions only")
+    c.add_argument("--json", action="store_true", help="one JSON object per configuration")
+    c.set_defaults(func=cmd_coverage)
+
+    v = sub.add_parser("view", help="render a picture of the scene (CubeSat over the textured Earth)")
+    v.add_argument("config", metavar="CONFIG")
+    v.add_argument("-o", "--output", default="scene.png", help="PNG file (default %(default)s)")
+    v.add_argument("--spp", type=int, default=64, help="samples per pixel (default %(default)s)")
+    v.add_argument("--resolution", type=int, nargs=2, default=(960, 540), metavar=("W", "H"))
+    v.add_argument("--json", action="store_true")
+    v.set_defaults(func=cmd_view)
+
+    va = sub.add_parser("validate", help="rendered-vs-analytic report of a run file (exit 1 outside tolerance)")
+    va.add_argument("run", metavar="RUN.nc")
+    va.add_argument("--json", action="store_true")
+    va.set_defaults(func=cmd_validate)
+
+    e = sub.add_parser("estimate", help="sensor chain + the thesis' estimators on a run file: error table")
+    e.add_argument("run", metavar="RUN.nc")
+    e.add_argument("--diode", default="BPW34FS", help="diode type (BPW34FS, SFH2430, BPW34FAS, BPV23F)")
+    e.add_argument("--noise", action="store_true", help="shot and Johnson noise in the sensor chain")
+    e.add_argument("--seed", type=int, default=0, help="noise seed")
+    e.add_argument("--plots", metavar="DIR", help="write error plots (PNG) to DIR")
+    e.add_argument("--json", action="store_true")
+    e.set_defaults(func=cmd_estimate)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)

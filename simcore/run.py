@@ -186,15 +186,7 @@ def build_dataset(study, data, variant):
     import xarray as xr
     o, g, cfg = study.opts, study.geometry, study.config
     n, k = data["rendered"].shape[:2]
-    sun_body = g.sun_dir_body
-    cos_inc = np.clip(np.einsum("nj,kj->nk", sun_body, cfg.normals), 0.0, None)
-    e_cos = E_SUN_W_M2 * study.sun_scale(slice(0, n)) [:, None] * cos_inc
     bound = _check.discretisation_bound(data["analytic"][..., 1], data["analytic_albedo_refined"], CHECK_REFINE)
-    considered = np.broadcast_to(data["valid"][:, None], (n, k))
-    flags, report = _check.compare(
-        data["rendered"][..., 0], data["rendered_se"][..., 0], data["analytic"][..., 0],
-        data["rendered"][..., 1], data["rendered_se"][..., 1], data["analytic_albedo_refined"], bound, e_cos,
-        considered=considered)
     analytic = data["analytic"].copy()
     analytic_ref = np.stack([analytic[..., 0], data["analytic_albedo_refined"]], axis=-1)
     names = [d.name for d in cfg.diodes]
@@ -222,11 +214,10 @@ def build_dataset(study, data, variant):
                                    {"units": W, "long_name": f"analytic reference of the check (albedo on the map "
                                                              f"refined {CHECK_REFINE}x{CHECK_REFINE})"}),
             "albedo_discretisation_bound": (("time", "diode"), bound, {"units": W}),
-            "albedo_z": (("time", "diode"), flags["albedo_z"],
-                         {"long_name": "(rendered - analytic reference) / sqrt(se^2 + bound^2)"}),
-            "outlier": (("time", "diode", "component"), np.stack([flags["direct"], flags["albedo"]], axis=-1),
-                        {"long_name": "outside the analytic check's tolerance"}),
-            "sun_dir_body": (("time", "xyz"), sun_body, {"long_name": "unit satellite->Sun vector", "frame": "body"}),
+            "sun_dir_body": (("time", "xyz"), g.sun_dir_body, {"long_name": "unit satellite->Sun vector",
+                                                                 "frame": "body"}),
+            "sun_scale": ("time", study.sun_scale(slice(0, n)),
+                          {"long_name": "factor on the solar constant (1, or (1 AU / r)^2 with distance scaling)"}),
             "sun_dir_gcrs": (("time", "xyz"), g.sun_dir_gcrs, {"long_name": "unit satellite->Sun vector", "frame": "GCRS"}),
             "r_sat_gcrs": (("time", "xyz"), g.r_sat_gcrs_m, {"units": "m", "frame": "GCRS"}),
             "r_sat_ecef": (("time", "xyz"), g.r_sat_ecef_m, {"units": "m", "frame": "ITRS"}),
@@ -238,6 +229,7 @@ def build_dataset(study, data, variant):
                                  {"long_name": "attitude quaternion, scalar first, rotates body vectors into GCRS"}),
             "valid": ("time", data["valid"].astype(np.int8)),
             "normal_body": (("diode", "xyz"), cfg.normals, {"frame": "body"}),
+            "fov_deg": ("diode", cfg.fov_deg, {"units": "deg", "long_name": "design field of view (eq. 4.15)"}),
             "dead": ("diode", cfg.dead.astype(np.int8)),
         },
         coords=coords,
@@ -258,9 +250,15 @@ def build_dataset(study, data, variant):
         "options": json.dumps(o.spec(), sort_keys=True),
         "software": json.dumps(_versions(), sort_keys=True),
         "e_sun_w_m2": E_SUN_W_M2,
-        "check": json.dumps(report, sort_keys=True),
-        "check_pass": int(report["pass"]),
+        "period_s": float(orbital_period_s(study.orbit)),
     })
+    flags, report = check_run(ds)
+    ds["albedo_z"] = (("time", "diode"), flags["albedo_z"],
+                      {"long_name": "(rendered - analytic reference) / sqrt(se^2 + bound^2)"})
+    ds["outlier"] = (("time", "diode", "component"), np.stack([flags["direct"], flags["albedo"]], axis=-1).astype(np.int8),
+                     {"long_name": "1 where outside the analytic check's tolerance"})
+    ds.attrs["check"] = json.dumps(report, sort_keys=True)
+    ds.attrs["check_pass"] = int(report["pass"])
     return ds, report
 
 
@@ -296,3 +294,39 @@ def execute(opts, *, progress=None, log=None):
     atomic_write(opts.output, write)
     store.remove()
     return opts.output, ds, report
+
+
+REQUIRED_VARIABLES = ("irradiance", "irradiance_se", "analytic", "analytic_reference", "albedo_discretisation_bound",
+                      "sun_dir_body", "sun_scale", "normal_body", "dead", "illumination", "q_gcrs_from_body", "valid")
+
+
+def open_run(path):
+    """Return the Dataset of a finished run file, or raise ValueError saying why it is not one."""
+    import xarray as xr
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"no run file at {path}")
+    if os.path.isdir(path):
+        raise ValueError(f"{path} is a folder, not a run file (.nc); a folder ending in .partial is an "
+                         "unfinished run: finish it by running the same 'sunsim run' command again")
+    try:
+        ds = xr.open_dataset(path, engine="h5netcdf")
+        ds.load()
+    except Exception as exc:  # h5py/netCDF raise many types for a corrupt file
+        raise ValueError(f"{path} is not a readable netCDF run file ({type(exc).__name__}: {exc}); "
+                         "was it written by 'sunsim run'?") from None
+    missing = [v for v in REQUIRED_VARIABLES if v not in ds]
+    if ds.attrs.get("title") != "sunsim diode irradiance run" or missing:
+        raise ValueError(f"{path} is not a sunsim run file (missing {', '.join(missing) or 'its sunsim title'}); "
+                         "give a file written by 'sunsim run'")
+    return ds
+
+
+def check_run(ds):
+    """Return (flags, report): the analytic check recomputed from a run Dataset's arrays."""
+    n, k = ds.sizes["time"], ds.sizes["diode"]
+    cos_inc = np.clip(np.einsum("nj,kj->nk", ds["sun_dir_body"].values, ds["normal_body"].values), 0.0, None)
+    scale = float(ds.attrs.get("e_sun_w_m2", E_SUN_W_M2)) * ds["sun_scale"].values[:, None]
+    irr, se, ref = ds["irradiance"].values, ds["irradiance_se"].values, ds["analytic_reference"].values
+    considered = np.broadcast_to(ds["valid"].values.astype(bool)[:, None], (n, k))
+    return _check.compare(irr[..., 0], se[..., 0], ref[..., 0], irr[..., 1], se[..., 1], ref[..., 1],
+                          ds["albedo_discretisation_bound"].values, scale * cos_inc, considered=considered)
