@@ -121,6 +121,7 @@ class Study:
             self.attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
         self.geometry = compute_geometry(self.orbit, self.epochs, self.attitude)
         self.map = load_map(opts.reflectivity)
+        self.map_refined = _refined(self.map, CHECK_REFINE)
         self._renderer = None
 
     @property
@@ -159,7 +160,7 @@ class Study:
             seed=o.seed, epoch_offset=start, direct_samples=o.direct_samples, albedo_samples=o.albedo_samples,
             rel_se_direct=o.rel_se_direct, rel_se_albedo=o.rel_se_albedo, progress=None)
         native = self.analytic(sl, self.map)
-        fine = self.analytic(sl, _refined(self.map, CHECK_REFINE))
+        fine = self.analytic(sl, self.map_refined)
         out = {
             "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2], axis=-1),
             "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2], axis=-1),

@@ -1,0 +1,88 @@
+"""The main job end to end: a killed run resumes to exactly the numbers of an uninterrupted one,
+and user mistakes get one clear line and a non-zero exit, never a traceback."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import xarray as xr
+
+SUNSIM = [sys.executable, "-m", "simcore.cli"]
+# A short sunlit stretch (the default start is in eclipse), few samples: seconds per chunk.
+SMALL = ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "24", "--chunk", "4", "--samples", "64", "16"]
+
+
+def _sunsim(args, **kw):
+    return subprocess.run(SUNSIM + args, capture_output=True, text=True, timeout=600, **kw)
+
+
+def test_killed_run_resumes_to_identical_numbers(tmp_path):
+    out = str(tmp_path / "killed.nc")
+    log = open(tmp_path / "killed.log", "w+")
+    proc = subprocess.Popen(SUNSIM + SMALL + ["-o", out], stdout=subprocess.DEVNULL, stderr=log)
+    partial = out + ".partial"
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        done = [f for f in os.listdir(partial)] if os.path.isdir(partial) else []
+        if sum(f.startswith("chunk_") and f.endswith(".npz") for f in done) >= 2:
+            break
+        if proc.poll() is not None:
+            log.seek(0)
+            pytest.fail("the run finished before it could be killed: " + log.read()[-2000:])
+        time.sleep(0.05)
+    else:
+        proc.kill()
+        pytest.fail("no chunk was written within 300 s")
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    log.close()
+    assert not os.path.exists(out), "a killed run must leave nothing under the final name"
+    n_before = len([f for f in os.listdir(partial) if f.startswith("chunk_")])
+    assert 2 <= n_before < 6
+
+    resumed = _sunsim(SMALL + ["-o", out])
+    assert resumed.returncode == 0, resumed.stderr
+    assert "resuming" in resumed.stderr
+    assert not os.path.exists(partial)
+
+    whole = str(tmp_path / "whole.nc")
+    straight = _sunsim(SMALL + ["-o", whole])
+    assert straight.returncode == 0, straight.stderr
+
+    a, b = xr.load_dataset(out), xr.load_dataset(whole)
+    assert set(a.data_vars) == set(b.data_vars)
+    for name in a.data_vars:
+        np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+    assert a.attrs["options"] == b.attrs["options"]
+    assert float(a["irradiance"].sel(component="direct").max()) > 100  # sunlit: real numbers compared
+
+
+@pytest.mark.parametrize("args, words", [
+    (["run", "--config", "tilt20_fov7"], "did you mean"),
+    (["run", "--start", "2016-02-30T00:00:00Z"], "day is out of range"),
+    (["run", "--duration", "-5"], "--duration"),
+    (["run", "--start", "1980-01-01T00:00:00Z"], "epoch of the TLE"),
+    (["run", "-o", "/nonexistent-folder/x.nc"], "does not exist"),
+    (["coverage", "tilt25_fov7O"], "did you mean"),
+])
+def test_user_mistakes_get_one_clear_line(args, words):
+    r = _sunsim(args)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr
+    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and words in lines[0], r.stderr
+
+
+def test_corrupt_and_foreign_run_files_are_refused(tmp_path):
+    junk = tmp_path / "junk.nc"
+    junk.write_bytes(os.urandom(4096))
+    foreign = tmp_path / "foreign.nc"
+    xr.Dataset({"x": ("t", np.arange(3.0))}).to_netcdf(foreign, engine="h5netcdf")
+    for path, words in ((junk, "not a readable netCDF"), (foreign, "not a sunsim run file")):
+        for cmd in ("validate", "estimate"):
+            r = _sunsim([cmd, str(path)])
+            assert r.returncode == 2 and "Traceback" not in r.stderr
+            assert words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
