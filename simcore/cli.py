@@ -228,6 +228,26 @@ def cmd_estimate(args):
     return 0
 
 
+def cmd_sweep(args):
+    """Configurations x start dates x spin rates x seeds on Dask, into one dataset."""
+    from simcore.run import RunOptions
+    from simcore.sweep import sweep
+    samples = args.samples
+    base = RunOptions(tle=args.tle, satellite=args.satellite, duration_s=args.duration, step_s=args.step,
+                      rel_se_direct=None if samples else args.accuracy[0],
+                      rel_se_albedo=None if samples else args.accuracy[1],
+                      direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
+                      reflectivity=args.map, sun_disc=not args.point_sun, chunk_epochs=args.chunk)
+    log = (lambda m: None) if args.json else print
+    path, ds = sweep(base, args.configs, args.starts, args.spin_rates, args.seeds, args.folder,
+                     scheduler=args.scheduler, workers=args.workers, log=log)
+    passed = int(ds["check_pass"].values.sum())
+    out = {"sweep": path, "runs": int(ds.sizes["run"]), "checks_passed": passed}
+    print(json.dumps(out) if args.json else f"sweep: {out['runs']} runs in {path}; analytic check passed in "
+          f"{passed} of {out['runs']} (see 'sunsim validate' on the files in runs/)")
+    return 0
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {simcore.__version__}")
@@ -270,6 +290,26 @@ def build_parser():
     e.add_argument("--plots", metavar="DIR", help="write error plots (PNG) to DIR")
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_estimate)
+
+    w = sub.add_parser("sweep", help="configurations x start dates x spin rates x seeds on Dask, into one dataset")
+    w.add_argument("--configs", nargs="+", default=["tilt20_fov70"], metavar="CONFIG")
+    w.add_argument("--starts", nargs="+", default=["2016-07-02T00:00:00Z"], metavar="ISO")
+    w.add_argument("--spin-rates", nargs="+", type=float, default=[1.9], metavar="DEG_S")
+    w.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="SEED")
+    w.add_argument("--duration", type=float, default=None, metavar="S", help="seconds per run (default: one orbit)")
+    w.add_argument("--step", type=float, default=1.0, metavar="S")
+    w.add_argument("--tle", metavar="FILE", help=DEFAULT_TLE_HELP)
+    w.add_argument("--satellite", metavar="NAME_OR_ID")
+    w.add_argument("--accuracy", nargs=2, type=float, metavar=("DIRECT", "ALBEDO"), default=(0.002, 0.01))
+    w.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"))
+    w.add_argument("--map", default="toms2005")
+    w.add_argument("--point-sun", action="store_true")
+    w.add_argument("--chunk", type=int, default=512, metavar="EPOCHS")
+    w.add_argument("--folder", default="runs/sweep", help="where the runs and sweep.nc go (default %(default)s)")
+    w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
+    w.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default %(default)s)")
+    w.add_argument("--json", action="store_true")
+    w.set_defaults(func=cmd_sweep)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)
