@@ -5,6 +5,7 @@ metrics in :mod:`estimators.metrics`. Nothing here imports the renderer.
 """
 from estimators.metrics import (angle_error_deg, hanning_mean_std, hanning_window, orbit_summary,
                                 zenith_azimuth_error_deg)
+from estimators.advanced import model_albedo_estimate, opposite_pairs, smart_select_estimate
 from estimators.sun_vector import (albedo_sun_estimate, pinv_estimate, sun_albedo_sun_estimate,
                                    weighted_lsq, wls_estimate)
 
@@ -13,8 +14,9 @@ ESTIMATORS = {
     "wls": wls_estimate,
     "albedo_sun": albedo_sun_estimate,
     "sun_albedo_sun": sun_albedo_sun_estimate,
+    "smart_select": smart_select_estimate,
 }
 
-__all__ = ["ESTIMATORS", "albedo_sun_estimate", "angle_error_deg", "hanning_mean_std", "hanning_window",
+__all__ = ["ESTIMATORS", "albedo_sun_estimate", "model_albedo_estimate", "opposite_pairs", "smart_select_estimate", "angle_error_deg", "hanning_mean_std", "hanning_window",
            "orbit_summary", "pinv_estimate", "sun_albedo_sun_estimate", "weighted_lsq", "wls_estimate",
            "zenith_azimuth_error_deg"]

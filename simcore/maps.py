@@ -28,6 +28,8 @@ from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from importlib import resources
 
+import os
+
 import numpy as np
 
 from simcore.constants import R_EARTH_MEAN_M
@@ -237,6 +239,27 @@ def _toms2005():
 def _ceres2018(kind):
     with np.load(_data_path(f"ceres_2018_{kind}.npz")) as d:
         return ReflectivityMap(d["reflectivity"], d["lat_deg"], d["lon_deg"], name=f"CERES 2018 {kind}-sky")
+
+
+MAP_NAMES = ("toms2005", "ceres2018-all", "ceres2018-clear")
+
+
+def named_map(name):
+    """Return the shipped map called ``name`` (:data:`MAP_NAMES`; '_' may stand for '-') or one read
+    from a .npz file holding ``reflectivity`` (and optionally ``lat_deg``, ``lon_deg`` cell centres)."""
+    key = str(name).replace("_", "-")
+    if key == "toms2005":
+        return ReflectivityMap.toms2005()
+    if key in ("ceres2018-all", "ceres2018-clear"):
+        return ReflectivityMap.ceres2018(key.split("-")[1])
+    if str(name).endswith(".npz") and os.path.isfile(name):
+        with np.load(name) as z:
+            if "reflectivity" not in z.files:
+                raise ValueError(f"{name} has no 'reflectivity' array; save the map as np.savez(path, "
+                                 "reflectivity=..., lat_deg=..., lon_deg=...)")
+            return ReflectivityMap.from_array(z["reflectivity"], z["lat_deg"] if "lat_deg" in z.files else None,
+                                              z["lon_deg"] if "lon_deg" in z.files else None, name=str(name))
+    raise ValueError(f"unknown reflectivity map {name!r}; use one of {', '.join(MAP_NAMES)} or a .npz file")
 
 
 def as_map(reflectivity):

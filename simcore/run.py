@@ -23,10 +23,10 @@ from simcore import attitude as _attitude
 from simcore import check as _check
 from simcore.constants import E_SUN_W_M2
 from simcore.epochs import Epochs
+from simcore.maps import named_map
 from simcore.runstore import ChunkStore, atomic_write, check_writable, chunk_ranges
 from simcore.study import DEFAULT_START, compute_geometry, orbital_period_s
 
-MAPS = ("toms2005", "ceres2018-all", "ceres2018-clear")
 CHECK_REFINE = 3  # the analytic reference for the albedo check uses cells refined 3 x 3
 
 
@@ -73,23 +73,6 @@ class RunOptions:
         return d
 
 
-def load_map(name):
-    """Return the ReflectivityMap called ``name`` (see MAPS) or read from a .npz path."""
-    from simcore.maps import ReflectivityMap
-    if name == "toms2005":
-        return ReflectivityMap.toms2005()
-    if name in ("ceres2018-all", "ceres2018-clear"):
-        return ReflectivityMap.ceres2018(name.split("-")[1])
-    if os.path.isfile(name) and name.endswith(".npz"):
-        with np.load(name) as z:
-            if "reflectivity" not in z.files:
-                raise ValueError(f"{name} has no 'reflectivity' array; save the map as np.savez(path, "
-                                 "reflectivity=..., lat_deg=..., lon_deg=...)")
-            return ReflectivityMap.from_array(z["reflectivity"], z["lat_deg"] if "lat_deg" in z.files else None,
-                                              z["lon_deg"] if "lon_deg" in z.files else None, name=name)
-    raise ValueError(f"unknown reflectivity map {name!r}; use one of {', '.join(MAPS)} or a .npz file")
-
-
 def _refined(m, factor):
     from simcore.maps import ReflectivityMap
     v = np.repeat(np.repeat(m.values, factor, axis=0), factor, axis=1)
@@ -120,7 +103,7 @@ class Study:
         else:
             self.attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
         self.geometry = compute_geometry(self.orbit, self.epochs, self.attitude)
-        self.map = load_map(opts.reflectivity)
+        self.map = named_map(opts.reflectivity)
         self.map_refined = _refined(self.map, CHECK_REFINE)
         self._renderer = None
 
