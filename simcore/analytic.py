@@ -366,22 +366,32 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad):
     averaged over the solar disc when it has a radius (its shadow edges are then soft, as traced)."""
     offsets = solar_disc_offsets(sun_angular_radius_rad) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
     dirs = _disc_directions(sun_body, offsets)
-    resp = np.stack([np.mean([r.response(d @ f.T) for d in dirs], axis=0) for r, f in zip(resps, frames)], axis=1)
+    resp = np.stack([[r.response(d @ f.T) for d in dirs] for r, f in zip(resps, frames)], axis=2)  # (M, N, K)
     if body is None:
-        return resp
+        return resp.mean(axis=0)
     if not all(isinstance(r, _resp.WellAperture) for r in resps):
         raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture responses")
-    vis = [direct_visibility(resps, frames, body.positions_m, body.panel_normals, d, body.half_m) for d in dirs]
-    lit = np.stack([np.mean([r.response(d @ f.T) * v[:, k] for d, v in zip(dirs, vis)], axis=0)
-                    for k, (r, f) in enumerate(zip(resps, frames))], axis=1)
-    return lit
+
+    def vis(d, only=None):
+        return direct_visibility(resps, frames, body.positions_m, body.panel_normals, d, body.half_m, only)
+    # The box's shadow edge crosses the solar disc only for a few diode-epochs: find them from the
+    # centre and the outermost ring, and average over the whole disc there alone.
+    outer = min(len(dirs) - 1, 18)                       # the outermost ring: 18 points, 6 probed
+    probe = [0] + list(range(len(dirs) - outer, len(dirs), 3))
+    v_probe = np.stack([vis(dirs[i]) for i in probe])
+    edge = np.any(v_probe != v_probe[0], axis=0) | ((v_probe[0] > 0) & (v_probe[0] < 1))
+    v_all = np.broadcast_to(v_probe[0], resp.shape).copy()
+    if edge.any() and len(dirs) > 1:
+        for i in range(len(dirs)):
+            v_all[i][edge] = vis(dirs[i], only=edge)[edge]
+    return (resp * v_all).mean(axis=0)
 
 
 # ---- public entry point ---------------------------------------------------------------------
 def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_body, responses, *,
                      map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
                      albedo=True, backend="auto", precision="single", batch_epochs=4096, body=None,
-                     sun_angular_radius_rad=0.0):
+                     sun_angular_radius_rad=0.0, direct=True):
     """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`DiodeIrradiance`.
 
     ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
@@ -399,6 +409,7 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     direct Sun (needs well apertures as responses), the diode centre for albedo.
     ``sun_angular_radius_rad``: > 0 averages the direct response over the solar
     disc (37 equal-area points), as a renderer with a finite Sun sees it.
+    ``direct=False`` skips the direct Sun (zeros), e.g. for an albedo-only reference.
     """
     r_sat = _rows("r_sat_ecef_m", r_sat_ecef_m)
     r_sun = _rows("r_sun_ecef_m", r_sun_ecef_m)
@@ -438,7 +449,8 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     to_sun = to_sun / np.linalg.norm(to_sun, axis=1)[:, None]
     R_body_from_ecef = np.ascontiguousarray(np.swapaxes(R, 1, 2))
     sun_body = np.einsum("nij,nj->ni", R_body_from_ecef, to_sun)
-    direct = _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad)
+    direct = (_direct_response(sun_body, frames, resps, body, sun_angular_radius_rad) if direct
+              else np.zeros((n_ep, frames.shape[0])))
     # 1/r^2 for the direct Sun over the satellite -> Sun distance; the Earth's cells use the geocentric one.
     e_direct = sun_irradiance_w_m2(r_sun - r_sat, e_sun_w_m2, distance_scaling)
     direct = direct * (e_direct * lit)[:, None]

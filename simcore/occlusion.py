@@ -134,15 +134,17 @@ def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
     return max(lit, 0.0) / (4 * ax * ay)
 
 
-def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, half_m):
+def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, half_m, only=None):
     """Return (N, K): lit fraction with the body box over the well's own lit fraction (1 where the box
-    blocks nothing, 0 where it hides the whole lit area), for unit Sun directions ``d_body`` (N, 3)."""
+    blocks nothing, 0 where it hides the whole lit area), for unit Sun directions ``d_body`` (N, 3);
+    ``only`` (N, K) bool restricts the work to those pairs (the others read 1)."""
     d = np.atleast_2d(np.asarray(d_body, float))
     N, K = d.shape[0], len(frames)
     vis = np.ones((N, K))
     below = d @ np.asarray(panel_normals, float).T < 0          # only these can meet the body
     front = np.einsum("nj,kj->nk", d, np.asarray(frames)[:, 2]) > 0
-    for n, k in np.argwhere(below & front):
+    todo = below & front if only is None else below & front & only
+    for n, k in np.argwhere(todo):
         own = apertures[k].lit_fraction(d[n] @ frames[k].T)
         if own > 0:
             vis[n, k] = lit_fraction_with_box(apertures[k], frames[k], positions_m[k], d[n], half_m) / own

@@ -123,7 +123,7 @@ class Study:
         g = self.geometry
         return g.sun_distance_scale[sl] if self.opts.distance_scaling else np.ones(sl.stop - sl.start)
 
-    def analytic(self, sl, reflectivity_map):
+    def analytic(self, sl, reflectivity_map, direct=True):
         from simcore.analytic import BodyBox, diode_irradiance
         from simcore.render import SUN_ANGULAR_RADIUS_RAD
         g = self.geometry
@@ -132,7 +132,8 @@ class Study:
                                 e_sun_w_m2=E_SUN_W_M2, distance_scaling=self.opts.distance_scaling,
                                 eclipse="conical" if self.opts.sun_disc else "cylindrical",
                                 body=BodyBox.from_config(self.config),
-                                sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD if self.opts.sun_disc else 0.0)
+                                sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD if self.opts.sun_disc else 0.0,
+                                direct=direct)
 
     def render_chunk(self, start, stop):
         """Return the arrays of epochs [start, stop): rendered and analytic irradiance."""
@@ -143,7 +144,7 @@ class Study:
             seed=o.seed, epoch_offset=start, direct_samples=o.direct_samples, albedo_samples=o.albedo_samples,
             rel_se_direct=o.rel_se_direct, rel_se_albedo=o.rel_se_albedo, progress=None)
         native = self.analytic(sl, self.map)
-        fine = self.analytic(sl, self.map_refined)
+        fine = self.analytic(sl, self.map_refined, direct=False)
         out = {
             "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2], axis=-1),
             "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2], axis=-1),

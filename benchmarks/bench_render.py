@@ -1,0 +1,110 @@
+"""Benchmark simcore.render: ms per epoch for the 14 diodes at the sample counts that reach
+0.2 % (direct) and 1 % (albedo) relative standard error, and rays per second.
+
+Geometry: the thesis' tilt-20 / FOV-70 satellite (scenes/tilt20_fov70.toml and its
+mesh from scenes.geometry) on a synthetic circular orbit like ESTCube-1's (665 km,
+inclination 98 deg, Sun 20 deg out of the orbit plane so that every orbit has an
+eclipse), Earth turning under it, tumbling at 1.9 deg/s (thesis sec. 4.1) about a fixed
+body axis; TOMS 2005 reflectivity. One orbit at 1 s steps by default: a sample of the
+24 h run whose time it projects.
+
+    .venv/bin/python benchmarks/bench_render.py [--epochs N] [--step-s S] [--threads T]
+
+Last line: one JSON object.
+"""
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+
+import simcore  # noqa: F401  (sets DRJIT_LIBLLVM_PATH)
+from simcore.constants import OMEGA_EARTH_RAD_S, R_EARTH_MEAN_M
+from simcore.render import DiodeSet, Renderer
+
+MU_EARTH = 3.986004418e14  # m^3/s^2, IERS conventions (2010)
+
+
+def _rot(axis, ang):
+    """Return rotation matrices (N, 3, 3) by angles ``ang`` (N,) about the unit ``axis``."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    s, c = np.sin(ang)[:, None, None], np.cos(ang)[:, None, None]
+    return np.eye(3) + s * K + (1 - c) * (K @ K)
+
+
+def synthetic_orbit(n, step_s, alt_m=665e3, inc_deg=98.0, beta_deg=20.0, spin_deg_s=1.9):
+    """Return (sun_dir_body, earth_center_body_m, R_ecef_from_body) (N, 3), (N, 3), (N, 3, 3)."""
+    t = np.arange(n) * step_s
+    a = R_EARTH_MEAN_M + alt_m
+    u = np.sqrt(MU_EARTH / a ** 3) * t
+    inc = np.radians(inc_deg)
+    r_eci = a * np.stack([np.cos(u), np.sin(u) * np.cos(inc), np.sin(u) * np.sin(inc)], axis=1)
+    h = np.array([0.0, -np.sin(inc), np.cos(inc)])                 # orbit normal
+    b = np.radians(beta_deg)
+    s_eci = np.cos(b) * np.array([1.0, 0.0, 0.0]) + np.sin(b) * h   # Sun 20 deg off the plane
+    s_eci /= np.linalg.norm(s_eci)
+    R_ecef_from_eci = _rot([0, 0, 1], -OMEGA_EARTH_RAD_S * t)
+    R_eci_from_body = _rot([0.3, -0.5, 0.81], np.radians(spin_deg_s) * t) @ _rot([1, 2, 3], np.array([0.7]))
+    R_body_from_eci = np.swapaxes(R_eci_from_body, 1, 2)
+    sun_body = R_body_from_eci @ s_eci
+    earth_body = -np.einsum("nij,nj->ni", R_body_from_eci, r_eci)
+    return sun_body, earth_body, R_ecef_from_eci @ R_eci_from_body
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--epochs", type=int, default=5880, help="epochs to render (default: one orbit)")
+    ap.add_argument("--step-s", type=float, default=1.0)
+    ap.add_argument("--config", default="tilt20_fov70")
+    ap.add_argument("--threads", type=int, default=None)
+    ap.add_argument("--variant", default=None)
+    args = ap.parse_args()
+
+    from scenes.config import SatelliteConfig
+    from scenes.geometry import build_satellite_mesh
+    cfg = SatelliteConfig.load(args.config)
+    mesh = build_satellite_mesh(cfg)
+    load0 = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    rend = Renderer(DiodeSet.from_config(cfg), mesh, variant=args.variant, threads=args.threads)
+    sun, earth, rot = synthetic_orbit(args.epochs, args.step_s)
+    targets = dict(rel_se_direct=0.002, rel_se_albedo=0.01)
+    rend.render(sun[:64], earth[:64], rot[:64], seed=99, **targets)     # compile the kernels
+    warm_s = time.perf_counter() - t0
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    res = rend.render(sun, earth, rot, seed=1, **targets)
+    dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+    n, k = res.direct_w_m2.shape
+    ms = dt / n * 1e3
+    rays = res.rays
+    floor = 0.01
+    met_d = np.mean(res.direct_se_w_m2 <= np.maximum(0.002 * res.direct_w_m2, floor))
+    met_a = np.mean(res.albedo_se_w_m2 <= np.maximum(0.01 * res.albedo_w_m2, floor))
+    lit = res.direct_w_m2 > 0
+    print(f"config {args.config}: {k} diodes, {n} epochs at {args.step_s} s, variant {res.variant}, "
+          f"mesh {len(mesh.faces)} triangles")
+    print(f"warm-up (scene + kernel compilation + 64 epochs): {warm_s:.2f} s")
+    print(f"render: {dt:.2f} s = {ms:.3f} ms per epoch ({ms / k:.3f} ms per diode-epoch); "
+          f"CPU time {cpu / n * 1e3:.3f} ms per epoch over {os.cpu_count()} cores "
+          f"(load average before: {load0:.2f}: other processes share the cores)")
+    print(f"rays: {rays / n:.0f} per epoch (direct {res.direct_samples.sum() / n:.0f}, "
+          f"albedo {res.albedo_samples.sum() / n:.0f}); {rays / dt / 1e6:.2f} M rays/s")
+    print(f"targets met (0.2 % direct, 1 % albedo, or se <= {floor} W/m^2): direct {met_d:.4f}, "
+          f"albedo {met_a:.4f}; sunlit diode-epochs {lit.mean():.3f}")
+    day_s = 86400 * ms / 1e3
+    print(f"projected 24 h at 1 s: {day_s / 60:.1f} min (target <= 10 min, stretch <= 3 min)")
+    print(json.dumps(dict(bench="render", config=args.config, variant=res.variant, epochs=n, diodes=k,
+                          ms_per_epoch=round(ms, 4), cpu_ms_per_epoch=round(cpu / n * 1e3, 4),
+                          load_average=round(load0, 2), rays_per_s=round(rays / dt), rays_per_epoch=round(rays / n),
+                          direct_samples_per_epoch=round(res.direct_samples.sum() / n),
+                          albedo_samples_per_epoch=round(res.albedo_samples.sum() / n),
+                          target_met_direct=round(float(met_d), 5), target_met_albedo=round(float(met_a), 5),
+                          warmup_s=round(warm_s, 2), projected_24h_min=round(day_s / 60, 2),
+                          meets_10min=bool(day_s <= 600), meets_3min=bool(day_s <= 180))))
+
+
+if __name__ == "__main__":
+    main()

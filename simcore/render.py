@@ -1,0 +1,919 @@
+"""Monte-Carlo irradiance on every diode (W/m^2): direct Sun and Earth albedo, ray traced.
+
+The render frame is the body frame with the SATELLITE AT THE ORIGIN, so that
+millimetre apertures keep their float32 precision while the Earth sits
+7000 km away (docs/conventions.md). Per epoch the caller gives the unit Sun
+vector in body axes, the Earth's centre in body axes (``-R_body_from_ecef @
+r_sat_ecef``), the rotation ``R_ecef_from_body`` (to look the Earth's
+reflectivity up by latitude and longitude) and an irradiance scale for the
+Sun-Earth distance. The satellite's occluders (body, rails, ramps, aperture
+walls; not the diodes' own surfaces) are one triangle mesh that Mitsuba's
+``scene.ray_test`` traces; rays start on the diode surface with no offset.
+
+Both estimators are plain Dr.Jit functions over a wavefront of lanes
+(diode-epoch task x sample), many epochs per launch:
+
+* Direct Sun (next-event estimation). Each diode is cut into 2 m^2 strata
+  (squares turned 45 deg to the diode's sides, so that the aperture walls'
+  shadow edges cut many strata obliquely) with two random points per
+  stratum; from each point a shadow ray goes toward the Sun (or toward a point
+  drawn uniformly on the solar disc, which gives the penumbra). The mesh or
+  the Earth (analytic ray-sphere test per lane) can block it. Irradiance =
+  E_sun * scale * cos(incidence) * unblocked fraction: a bare diode reads
+  E_sun cos(theta) exactly, with zero variance. The two points per stratum
+  give an unbiased standard error of the stratified estimate.
+* Earth albedo. The Earth is a Lambertian sphere of radius R whose
+  reflectance ``rho`` comes from a regular latitude/longitude map (row 0 the
+  southern band, never clamped): radiance ``L = rho E_sun max(0, n_e . s) / pi``
+  (the Sun's visibility at an Earth point is ``n_e . s > 0`` on a sphere).
+  ``int L cos(theta_d) V dOmega`` over the Earth's disc as seen from the
+  satellite is sampled in direction space: the spherical cap is cut into
+  16 x 32 bins (radial x azimuth), each bin gets a probability proportional
+  to the largest value at its corners of radiance x diode cosine x analytic
+  aperture fraction (when the diode's WellAperture is known) x a visibility
+  table of the rest of the satellite, mixed with 2 % uniform in solid angle so
+  that every bin keeps a positive probability (the estimator stays unbiased
+  whatever the mesh does). The bin is drawn by stratified inversion of its CDF
+  (two samples per stratum again), the direction uniformly within it; a ray
+  from a point on the diode toward it is tested against the mesh.
+
+Aperture split (when the diodes' ``WellAperture`` are given): ~4/5 of a
+task's samples are drawn on the part of the diode that the analytic well lets
+the light reach (weighted by its area), ~1/5 on the whole diode counted only
+outside that part. Both are traced against the full mesh, so the sum is
+unbiased whatever the mesh; when the mesh's well is the analytic one, the
+aperture itself adds no noise and only the body, rails, neighbours and Earth
+do (see ``Renderer._rounds``). ``control_variate=False`` turns it off.
+
+Sums are formed per (epoch, diode) in float64 in numpy from the per-lane
+float32 values. Random numbers come from ``mi.sample_tea_32`` keyed by
+(seed, global epoch index, diode, estimator, round, group): a given seed gives
+bitwise identical results whatever the batch split, so a resumed run
+reproduces (``epoch_offset``). With target accuracies (``rel_se_direct``,
+``rel_se_albedo``) the diode-epochs that have not reached them (nor the
+absolute floor ``abs_se_floor_w_m2``) get further rounds of samples, up to a
+cap.
+"""
+from dataclasses import dataclass, field
+import os
+
+import numpy as np
+
+from simcore import _llvm
+from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
+
+SUN_ANGULAR_RADIUS_RAD = float(np.arcsin(R_SUN_M / AU_M))  # 0.2666 deg: the 0.53 deg disc at 1 AU
+DEFAULT_MAP = os.path.join(os.path.dirname(__file__), "data", "toms_2005_mean.npz")
+
+_VARIANTS = ("llvm_ad_mono", "cuda_ad_mono")
+_DEFENSIVE = 0.02         # share of uniform-in-solid-angle sampling in the albedo proposal
+_N_T, _N_P = 16, 32       # albedo proposal bins: radial x azimuth (_N_P a power of 2)
+_DIRECT_SAMPLES0 = 1024
+_ALBEDO_STRATA0 = 128
+_VIS_NT, _VIS_NP = 90, 180  # visibility table over each diode's hemisphere (1 x 2 deg cells)
+# Radial bins of the albedo proposal: edges 40 % of the way from equal solid angle to equal
+# ground (central) angle; the Sun's cosine at the bin corners widened by ~half a bin.
+_EDGE_MIX, _MARGIN_SCALE = 0.4, 1.0
+_MAX_LANES = 1 << 22      # lanes per launch (memory bound, ~100 MB of temporaries)
+
+
+# --------------------------------------------------------------------------- variants
+
+def _cuda_works():
+    """Return True when Dr.Jit can use a CUDA device in this process."""
+    import drjit as dr
+    try:
+        return bool(dr.has_backend(dr.JitBackend.CUDA))
+    except Exception:  # a broken driver is "no GPU" here
+        return False
+
+
+def choose_variant(requested=None):
+    """Return the Mitsuba variant to render with: 'cuda_ad_mono' when a CUDA GPU works,
+    else 'llvm_ad_mono'; ``requested`` forces one and raises if it cannot run here.
+
+    Raises ``ValueError`` for an unknown variant, ``RuntimeError`` when a CUDA
+    variant is requested without a working GPU, and
+    ``simcore._llvm.LLVMNotFoundError`` (with the install hint) when the CPU
+    variant is needed and no usable libLLVM exists.
+    """
+    if requested is not None and requested not in _VARIANTS:
+        raise ValueError(f"unknown render variant {requested!r}; use one of {_VARIANTS} "
+                         "or None to pick the GPU when there is one")
+    if requested == "cuda_ad_mono":
+        import mitsuba  # noqa: F401  (loads drjit's backends)
+        if not _cuda_works():
+            raise RuntimeError("variant 'cuda_ad_mono' was requested but no working CUDA GPU was found "
+                               "(Dr.Jit reports no CUDA backend); use variant='llvm_ad_mono' or None "
+                               "to render on the CPU")
+        return requested
+    if requested is None:
+        import mitsuba  # noqa: F401
+        if _cuda_works():
+            return "cuda_ad_mono"
+    # The CPU variant: make sure a usable libLLVM is there before Dr.Jit touches it.
+    _llvm.find_libllvm()
+    import drjit as dr
+    if not dr.has_backend(dr.JitBackend.LLVM):
+        raise _llvm.LLVMNotFoundError(
+            f"Dr.Jit could not load the libLLVM at {os.environ.get(_llvm.ENV)!r}. " + _llvm.INSTALL_HINT)
+    return "llvm_ad_mono"
+
+
+# --------------------------------------------------------------------------- inputs
+
+@dataclass(frozen=True)
+class DiodeSet:
+    """K rectangular diodes in the body frame (metres).
+
+    ``positions_m`` (K, 3): centre of each sensitive surface; ``frames`` (K, 3, 3):
+    rows (u, v, n), n the outward normal; ``sizes_m`` (K, 2): sides along u and v.
+    ``apertures``: optional sequence of K ``simcore.aperture.WellAperture`` used only
+    to shape the albedo sampling (the traced mesh decides what is blocked).
+    """
+
+    positions_m: np.ndarray
+    frames: np.ndarray
+    sizes_m: np.ndarray
+    apertures: tuple = None
+
+    def __post_init__(self):
+        p = np.asarray(self.positions_m, dtype=float)
+        f = np.asarray(self.frames, dtype=float)
+        s = np.asarray(self.sizes_m, dtype=float)
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise ValueError(f"diode positions_m must have shape (K, 3), got {p.shape}")
+        k = p.shape[0]
+        if f.shape != (k, 3, 3):
+            raise ValueError(f"diode frames must have shape ({k}, 3, 3) (rows u, v, n), got {f.shape}")
+        if s.shape == (2,):
+            s = np.broadcast_to(s, (k, 2)).copy()
+        if s.shape != (k, 2) or not np.all(s > 0):
+            raise ValueError(f"diode sizes_m must be positive with shape ({k}, 2) or (2,), got {s.shape}")
+        err = np.abs(np.einsum("kij,klj->kil", f, f) - np.eye(3)).max() if k else 0.0
+        if err > 1e-6:
+            raise ValueError(f"diode frames must be orthonormal (rows u, v, n); worst deviation {err:.2e}")
+        if not (np.all(np.isfinite(p))):
+            raise ValueError("diode positions_m must be finite")
+        if self.apertures is not None and len(self.apertures) != k:
+            raise ValueError(f"apertures must list one WellAperture per diode ({k}), got {len(self.apertures)}")
+        object.__setattr__(self, "positions_m", p)
+        object.__setattr__(self, "frames", f)
+        object.__setattr__(self, "sizes_m", s)
+        if self.apertures is not None:
+            object.__setattr__(self, "apertures", tuple(self.apertures))
+
+    @property
+    def count(self):
+        return self.positions_m.shape[0]
+
+    @classmethod
+    def from_config(cls, config):
+        """Return the DiodeSet of a ``scenes.config.SatelliteConfig`` (its ``positions_m``,
+        ``frames`` and ``aperture`` — one WellAperture shared by all diodes or one per diode)."""
+        frames = np.asarray(config.frames, dtype=float)
+        ap = getattr(config, "apertures", None)
+        if ap is None:
+            ap = config.aperture
+        aps = tuple(ap) if isinstance(ap, (list, tuple)) else (ap,) * frames.shape[0]
+        sizes = np.array([[a.diode_x_m, a.diode_y_m] for a in aps])
+        return cls(np.asarray(config.positions_m, dtype=float), frames, sizes, aps)
+
+
+@dataclass
+class RenderResult:
+    """Rendered irradiance per (epoch, diode), W/m^2 on the diode's sensitive area.
+
+    ``direct_*``: the Sun seen directly; ``albedo_*``: sunlight reflected by the
+    Earth; ``*_se_w_m2``: one standard error of the Monte-Carlo estimate;
+    ``*_samples``: rays traced for each (epoch, diode) (0 where the value is
+    exactly zero by geometry: Sun behind the diode, full eclipse, no sunlit Earth
+    in view). ``valid`` (N,): False for epochs whose inputs were not finite
+    (their values are NaN).
+    """
+
+    direct_w_m2: np.ndarray
+    direct_se_w_m2: np.ndarray
+    albedo_w_m2: np.ndarray
+    albedo_se_w_m2: np.ndarray
+    direct_samples: np.ndarray
+    albedo_samples: np.ndarray
+    valid: np.ndarray
+    variant: str
+    seed: int
+    info: dict = field(default_factory=dict)
+
+    @property
+    def total_w_m2(self):
+        return self.direct_w_m2 + self.albedo_w_m2
+
+    @property
+    def rays(self):
+        return int(self.direct_samples.sum() + self.albedo_samples.sum())
+
+
+def _mix32(*parts):
+    """Return a uint32 hash of integer arrays (splitmix64 chain), broadcast together."""
+    m = np.uint64(0xFFFFFFFFFFFFFFFF)
+    h = np.zeros(np.broadcast(*[np.asarray(p) for p in parts]).shape, dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        for p in parts:
+            h = (h ^ (np.asarray(p).astype(np.uint64) & m)) + np.uint64(0x9E3779B97F4A7C15)
+            h = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+            h = (h ^ (h >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+            h = h ^ (h >> np.uint64(31))
+    return (h & np.uint64(0xFFFFFFFF)).astype(np.uint32)
+
+
+def _unit(v, name):
+    n = np.linalg.norm(v, axis=-1)
+    bad = np.isfinite(n) & (np.abs(n - 1.0) > 1e-6)
+    if np.any(bad):
+        raise ValueError(f"{name} must hold unit vectors; epoch {int(np.argmax(bad))} has norm "
+                         f"{n[np.argmax(bad)]:.9f}. Normalise it (satellite -> Sun, body frame)")
+    return v / n[..., None]
+
+
+# --------------------------------------------------------------------------- renderer
+
+class Renderer:
+    """A satellite scene ready to render diode irradiance along many epochs.
+
+    ``diodes``: a DiodeSet; ``occluder_mesh``: a ``trimesh.Trimesh`` (body frame,
+    metres) of everything that can block light (not the diodes' own surfaces), or
+    None for bare diodes; ``reflectivity``: a (n_lat, n_lon) map on a regular
+    latitude/longitude grid, row 0 the southern band, column 0 starting at
+    ``lon_west_deg`` (default: the TOMS 2005 mean shipped in simcore/data);
+    ``sun_angular_radius_rad``: 0 for a point Sun, ``SUN_ANGULAR_RADIUS_RAD`` for
+    the 0.53 deg disc (penumbra, uniform disc: no limb darkening); ``variant``:
+    see :func:`choose_variant`; ``threads``: Dr.Jit CPU threads (default: all);
+    ``control_variate``: use the diodes' WellAperture for the aperture split
+    (module docstring) when ``diodes.apertures`` is given.
+
+    Building one traces a small visibility table per diode (1 x 2 deg, from its
+    well's opening) that only shapes the albedo sampling.
+    """
+
+    def __init__(self, diodes, occluder_mesh=None, *, reflectivity=None, lon_west_deg=-180.0,
+                 earth_radius_m=R_EARTH_MEAN_M, e_sun_w_m2=E_SUN_W_M2, sun_angular_radius_rad=0.0,
+                 variant=None, threads=None, control_variate=True):
+        if not isinstance(diodes, DiodeSet):
+            raise TypeError("diodes must be a simcore.render.DiodeSet (positions_m, frames, sizes_m)")
+        self.diodes = diodes
+        self.variant = choose_variant(variant)
+        import drjit as dr
+        import mitsuba as mi
+        mi.set_variant(self.variant)
+        if threads is not None:
+            dr.set_thread_count(int(threads))
+        self._dr, self._mi = dr, mi
+        if reflectivity is None:
+            reflectivity = np.load(DEFAULT_MAP)["reflectivity"]
+        refl = np.asarray(reflectivity, dtype=float)
+        if refl.ndim != 2 or min(refl.shape) < 1 or not np.all(np.isfinite(refl)):
+            raise ValueError(f"reflectivity must be a finite (n_lat, n_lon) map, got shape {refl.shape}")
+        self.reflectivity = refl
+        self.lon_west_rad = float(np.radians(lon_west_deg))
+        self.earth_radius_m = float(earth_radius_m)
+        self.e_sun_w_m2 = float(e_sun_w_m2)
+        a = float(sun_angular_radius_rad)
+        if not 0.0 <= a < 0.1:
+            raise ValueError(f"sun_angular_radius_rad must lie in [0, 0.1) rad, got {a}; "
+                             f"use 0 (point Sun) or SUN_ANGULAR_RADIUS_RAD ({SUN_ANGULAR_RADIUS_RAD:.5f})")
+        self.sun_angular_radius_rad = a
+        self._refl_dr = mi.Float(refl.astype(np.float32).ravel())
+        self._scene = self._build_scene(occluder_mesh)
+        self._diode_f32 = self._diode_arrays()
+        # Aperture hint for the albedo sampling (half diode x/y, half opening x/y, height);
+        # a bare diode (opening = diode, height 0) when unknown.
+        aps = diodes.apertures
+        half = diodes.sizes_m / 2
+        if aps is None:
+            self._ap_params = np.concatenate([half, half, np.zeros((len(half), 1))], axis=1)
+        else:
+            # the diode's own sides (where the points are sampled) with the well's opening
+            self._ap_params = np.array([[hx, hy, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
+                                        for (hx, hy), a in zip(half, aps)])
+        self.control_variate = bool(control_variate) and aps is not None
+        self._vis = self._visibility_table()
+
+    # -- scene
+    def _build_scene(self, mesh):
+        mi = self._mi
+        if mesh is None or len(getattr(mesh, "faces", ())) == 0:
+            return None
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        if not np.all(np.isfinite(v)):
+            raise ValueError("occluder mesh has non-finite vertices")
+        if np.abs(v).max() > 100.0:
+            raise ValueError("occluder mesh spans more than 100 m from the body origin; it must be the "
+                             "satellite in body axes, in metres, centred on the satellite")
+        m = mi.Mesh("occluders", len(v), len(f), has_vertex_normals=False, has_vertex_texcoords=False)
+        params = mi.traverse(m)
+        params["vertex_positions"] = mi.Float(v.astype(np.float32).ravel())
+        params["faces"] = mi.UInt32(f.astype(np.uint32).ravel())
+        params.update()
+        return mi.load_dict({"type": "scene", "occluders": m})
+
+    def _diode_arrays(self):
+        d = self.diodes
+        u = d.frames[:, 0] * d.sizes_m[:, :1]
+        v = d.frames[:, 1] * d.sizes_m[:, 1:]
+        return dict(pos=d.positions_m, U=u, V=v, n=d.frames[:, 2])
+
+    # -- helpers for Dr.Jit
+    def _v3(self, arr):
+        mi = self._mi
+        a = np.ascontiguousarray(np.asarray(arr, dtype=np.float32).T)
+        return mi.Vector3f(mi.Float(a[0]), mi.Float(a[1]), mi.Float(a[2]))
+
+    def _gather3(self, src, idx):
+        dr, mi = self._dr, self._mi
+        return mi.Vector3f(dr.gather(mi.Float, src.x, idx), dr.gather(mi.Float, src.y, idx),
+                           dr.gather(mi.Float, src.z, idx))
+
+    def _rand(self, key, j, k):
+        """Return 2k uniform [0, 1) floats per lane from TEA(key, j*k + i)."""
+        dr, mi = self._dr, self._mi
+        out = []
+        for i in range(k):
+            a, b = mi.sample_tea_32(key, j * k + i)
+            out += [mi.Float(a >> 8) * (1.0 / 16777216.0), mi.Float(b >> 8) * (1.0 / 16777216.0)]
+        return out
+
+    def _blocked_by_mesh(self, o, d):
+        if self._scene is None:
+            return self._dr.zeros(self._mi.Bool, self._dr.width(o))
+        return self._scene.ray_test(self._mi.Ray3f(o, d))
+
+    # -- lanes: task k owns counts[k] consecutive lanes (its samples), split into launches
+    def _launches(self, counts):
+        """Yield (task slice, lane task index (np.uint32), lane sample index (np.uint32)) per launch."""
+        ends = np.cumsum(counts)
+        start = 0
+        while start < len(counts):
+            base = ends[start] - counts[start]
+            stop = int(np.searchsorted(ends, base + _MAX_LANES, side="right"))
+            stop = max(stop, start + 1)
+            if stop == start + 1 and len(counts) > start + 1:
+                stop = start + 2                  # keep >= 2 tasks: a 1-element array is a literal
+            sl = slice(start, stop)
+            c = counts[sl]
+            task = np.repeat(np.arange(len(c), dtype=np.uint32), c)
+            first = np.repeat(np.cumsum(c) - c, c)
+            j = (np.arange(len(task), dtype=np.int64) - first).astype(np.uint32)
+            yield sl, task, j
+            start = stop
+
+    def _trace(self, kernel, t, counts):
+        """Return the per-lane values (sum(counts),) float32 of ``kernel`` over tasks ``t``."""
+        T = len(counts)
+        if T < 2:                                 # a 1-element array would be baked in as a literal
+            t = _pad2(t)
+            return self._trace(kernel, t, np.concatenate([counts, [2]]))[:int(counts.sum())]
+        out = []
+        for sl, task, j in self._launches(counts):
+            sub = {k: (None if v is None else v[sl]) for k, v in t.items()}
+            if sl.stop - sl.start < 2:
+                sub = _pad2(sub)
+            out.append(kernel(sub, self._mi.UInt32(task), self._mi.UInt32(j)).numpy())
+        return np.concatenate(out)
+
+    # -- where the analytic well lets light through (aperture split, see _rounds)
+    def _well_rect(self, t, task, d):
+        """Return (x0, x1, y0, y1, lit) for unit directions ``d``: the rectangle of the diode
+        (fractions of its sides, centred, so within [-1/2, 1/2]) whose rays toward ``d`` leave
+        through the opening of the diode's analytic well (``simcore.aperture.WellAperture``
+        geometry: the opening shifted by -h tan along each wall axis), and its area fraction,
+        the lit fraction."""
+        dr, mi = self._dr, self._mi
+        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
+        du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
+        ax, ay, wx, wy, h = [dr.gather(mi.Float, mi.Float(t["ap"][:, k].astype(np.float32)), task)
+                             for k in range(5)]          # half diode, half opening, height
+        inv_n = 1.0 / dr.maximum(dn, 1e-6)
+        sx, sy = h * du * inv_n, h * dv * inv_n
+        x0 = dr.maximum(-ax, -wx - sx) / (2.0 * ax)
+        x1 = dr.minimum(ax, wx - sx) / (2.0 * ax)
+        y0 = dr.maximum(-ay, -wy - sy) / (2.0 * ay)
+        y1 = dr.minimum(ay, wy - sy) / (2.0 * ay)
+        lit = dr.select(dn > 0, dr.maximum(x1 - x0, 0.0) * dr.maximum(y1 - y0, 0.0), 0.0)
+        return x0, x1, y0, y1, lit
+
+    def _split_point(self, t, task, d, fx, fy):
+        """Return (fx, fy, weight) of the diode point for a lane of mode 0 (plain: the point as
+        drawn, weight 1), 1 (inside the analytic well's lit rectangle: the point mapped into it,
+        weight = its area) or 2 (the rest: the point as drawn, weight 0 inside the rectangle)."""
+        dr, mi = self._dr, self._mi
+        if not self.control_variate:
+            return fx, fy, mi.Float(1.0)
+        mode = dr.gather(mi.UInt32, mi.UInt32(t["mode"].astype(np.uint32)), task)
+        x0, x1, y0, y1, lit = self._well_rect(t, task, d)
+        in_a = mode == 1
+        gx = dr.select(in_a, x0 + (x1 - x0) * (fx + 0.5), fx)
+        gy = dr.select(in_a, y0 + (y1 - y0) * (fy + 0.5), fy)
+        inside = (lit > 0) & (gx >= x0) & (gx <= x1) & (gy >= y0) & (gy <= y1)
+        wgt = dr.select(in_a, lit, dr.select((mode == 2) & inside, 0.0, 1.0))
+        return gx, gy, wgt
+
+    # -- direct Sun kernel
+    def _direct_kernel(self, t, task, j):
+        dr, mi = self._dr, self._mi
+        # Strata: the 2 m^2 diamonds (squares turned 45 deg) around the points (k, l) / 2m of
+        # the unit torus with k + l even, so that the aperture walls' edges, parallel to the
+        # diode's sides, cut many strata obliquely instead of one row of them.
+        # (max: lanes past the end of the last SIMD packet gather 0, and x86 traps on x / 0)
+        m = dr.maximum(dr.gather(mi.UInt32, mi.UInt32(t["m"].astype(np.uint32)), task), 1)
+        h = j >> 1
+        row = h // m
+        col = ((h - row * m) << 1) + (row & 1)
+        key = dr.gather(mi.UInt32, mi.UInt32(t["key"]), task)
+        r = self._rand(key, j, 2)
+        inv = dr.gather(mi.Float, mi.Float((0.5 / t["m"]).astype(np.float32)), task)
+        fx = (mi.Float(col) + r[0] + r[1] - 1.0) * inv
+        fy = (mi.Float(row) + r[0] - r[1]) * inv
+        fx = fx - dr.floor(fx) - 0.5
+        fy = fy - dr.floor(fy) - 0.5
+        s = self._gather3(self._v3(t["sun"]), task)
+        if self.sun_angular_radius_rad > 0:
+            # Uniform in solid angle over the disc: 1 - cos a = xi * (1 - cos a_max).
+            omc = r[2] * dr.opaque(mi.Float, 2.0 * np.sin(self.sun_angular_radius_rad / 2) ** 2)
+            sin_a = dr.sqrt(dr.maximum(omc * (2.0 - omc), 0.0))
+            phi = r[3] * (2.0 * np.pi)
+            e1, e2 = mi.coordinate_system(s)
+            d = dr.normalize(s * (1.0 - omc) + sin_a * (dr.cos(phi) * e1 + dr.sin(phi) * e2))
+        else:
+            d = s
+        fx, fy, wgt = self._split_point(t, task, d, fx, fy)
+        o = (self._gather3(self._v3(t["pos"]), task) + fx * self._gather3(self._v3(t["U"]), task)
+             + fy * self._gather3(self._v3(t["V"]), task))
+        blocked = self._blocked_by_mesh(o, d)
+        if t["earth"] is not None:
+            c = self._gather3(self._v3(t["earth"]), task)
+            b = dr.dot(d, c)
+            perp = c - b * d
+            blocked |= (b > 0) & (dr.squared_norm(perp) < dr.opaque(mi.Float, self.earth_radius_m ** 2))
+        val = dr.select(blocked, 0.0, wgt)
+        if self.sun_angular_radius_rad > 0:
+            val = val * dr.maximum(dr.dot(self._gather3(self._v3(t["n"]), task), d), 0.0)
+        return val
+
+    # -- albedo kernel
+    def _albedo_kernel(self, t, task, j):
+        dr, mi = self._dr, self._mi
+        B = _N_T * _N_P
+        h = j >> 1
+        key = dr.gather(mi.UInt32, mi.UInt32(t["key"]), task)
+        r = self._rand(key, j, 3)
+        inv_m = dr.gather(mi.Float, mi.Float((1.0 / t["m"]).astype(np.float32)), task)
+        u = (mi.Float(h) + r[0]) * inv_m
+        # Bin by binary search in the task's inclusive CDF (count of entries <= u).
+        cdf = mi.Float(np.ascontiguousarray(t["cdf"], dtype=np.float32).ravel())
+        base = task * B
+        lo = dr.zeros(mi.UInt32, dr.width(task))
+        step = B // 2
+        while step >= 1:
+            probe = dr.gather(mi.Float, cdf, base + lo + (step - 1))
+            lo = dr.select(probe <= u, lo + step, lo)
+            step //= 2
+        b = dr.minimum(lo, B - 1)
+        pmf = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(t["pmf"], dtype=np.float32).ravel()), base + b)
+        bt = b >> int(np.log2(_N_P))
+        bp = b & (_N_P - 1)
+        xmax = dr.gather(mi.Float, mi.Float(t["xmax"].astype(np.float32)), task)
+        edges = mi.Float(np.ascontiguousarray(t["tedge"], dtype=np.float32).ravel())
+        t0 = dr.gather(mi.Float, edges, task * (_N_T + 1) + bt)
+        dt = dr.gather(mi.Float, edges, task * (_N_T + 1) + bt + 1) - t0
+        g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
+        d = self._cap_direction(g3("w"), g3("e1"), g3("e2"), xmax, t0 + dt * r[1],
+                                (mi.Float(bp) + r[2]) * (2.0 * np.pi / _N_P))
+        fx, fy, wgt = self._split_point(t, task, d, r[3] - 0.5, r[4] - 0.5)
+        o = g3("pos") + fx * g3("U") + fy * g3("V")
+        cos_d = dr.dot(g3("n"), d)
+        rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
+        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot)
+        ok = hit & (cos_sun > 0) & (cos_d > 0) & ~self._blocked_by_mesh(o, d)
+        # f / q with q = pmf_b / Omega_b, Omega_b = 2 pi xmax dt / N_P; L = rho E cos_sun / pi
+        return dr.select(ok, wgt * rho * cos_sun * cos_d * (2.0 / _N_P) * xmax * dt / pmf, 0.0)
+
+    # -- the Earth seen along a direction: shared by the albedo kernel and its proposal
+    def _earth_along(self, d, c, s, rot):
+        """Return (hit, cos of the Sun at the Earth point, reflectivity there) for unit
+        directions ``d`` from a point at ``-c`` from the Earth's centre (body axes)."""
+        dr, mi = self._dr, self._mi
+        nlat, nlon = self.reflectivity.shape
+        R = self.earth_radius_m
+        # Stable with the satellite at the origin: x_e = -perp - sqrt(R^2 - |perp|^2) d.
+        bb = dr.dot(d, c)
+        perp = c - bb * d
+        q = dr.opaque(mi.Float, R * R) - dr.squared_norm(perp)
+        hit = (bb > 0) & (q > 0)
+        xe = -perp - dr.sqrt(dr.maximum(q, 0.0)) * d
+        cos_sun = dr.dot(xe, s) * (1.0 / R)
+        ex, ey, ez = dr.dot(rot[0], xe), dr.dot(rot[1], xe), dr.dot(rot[2], xe)
+        lat = dr.atan2(ez, dr.sqrt(ex * ex + ey * ey))
+        lon = dr.atan2(ey, ex)
+        row = dr.clip(mi.Int32(dr.floor((lat + 0.5 * np.pi) * (nlat / np.pi))), 0, nlat - 1)
+        col = mi.Int32(dr.floor((lon - self.lon_west_rad) * (nlon / (2.0 * np.pi))))
+        col = dr.select(col < 0, col + nlon, col)
+        col = dr.clip(dr.select(col >= nlon, col - nlon, col), 0, nlon - 1)
+        rho = dr.gather(mi.Float, self._refl_dr, mi.UInt32(row * nlon + col))
+        return hit, cos_sun, rho
+
+    def _cap_direction(self, w, e1, e2, xmax, t01, phi):
+        """Return the unit direction at fraction ``t01`` of the cap's solid angle (counted from
+        nadir ``w``) and azimuth ``phi`` about nadir."""
+        dr = self._dr
+        x = t01 * xmax                                    # 1 - cos(angle from nadir)
+        sin_t = dr.sqrt(dr.maximum(x * (2.0 - x), 0.0))
+        return dr.normalize((1.0 - x) * w + sin_t * (dr.cos(phi) * e1 + dr.sin(phi) * e2))
+
+    # -- the albedo proposal: radiance x diode cosine x aperture fraction at bin corners/centres
+    def _proposal_kernel(self, t, n_points):
+        dr, mi = self._dr, self._mi
+        T = len(t["key"])
+        i = dr.arange(mi.UInt32, T * n_points)
+        task = i // n_points
+        p = i - task * n_points
+        it = p // (_N_P + 1)                             # bin corners: (N_T + 1) x (N_P + 1)
+        ip = p - it * (_N_P + 1)
+        t01 = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(t["tedge"], dtype=np.float32).ravel()),
+                        task * (_N_T + 1) + it)
+        phi = mi.Float(ip) * (2.0 * np.pi / _N_P)
+        g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
+        d = self._cap_direction(g3("w"), g3("e1"), g3("e2"),
+                                dr.gather(mi.Float, mi.Float(t["xmax"].astype(np.float32)), task), t01, phi)
+        rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
+        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot)
+        lit = self._well_rect(t, task, d)[4]
+        dn = dr.dot(g3("n"), d)
+        # cos_sun widened by ~half a bin on the ground, so that bins the terminator crosses
+        # between their corners keep their weight
+        cos_sun = cos_sun + dr.gather(mi.Float, mi.Float(t["margin"].astype(np.float32)), task)
+        ok = hit & (cos_sun > 0) & (dn > 0)
+        f = dr.abs(rho) * cos_sun * dn * lit
+        if self._vis is not None:
+            # what the rest of the satellite hides from this diode (table from its well's rim)
+            fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(2)]
+            row = dr.clip(mi.Int32(dr.acos(dr.clip(dn, -1.0, 1.0)) * (_VIS_NT / (0.5 * np.pi))), 0, _VIS_NT - 1)
+            col = mi.Int32((dr.atan2(dr.dot(fr[1], d), dr.dot(fr[0], d)) + np.pi) * (_VIS_NP / (2.0 * np.pi)))
+            col = dr.clip(col, 0, _VIS_NP - 1)
+            k = mi.Int32(dr.gather(mi.UInt32, mi.UInt32(t["k"].astype(np.uint32)), task))
+            f *= dr.gather(mi.Float, self._vis, mi.UInt32((k * _VIS_NT + row) * _VIS_NP + col))
+        return dr.select(ok, f, 0.0).numpy().reshape(T, n_points)
+
+    def _visibility_table(self):
+        """Return the (K * _VIS_NT * _VIS_NP,) table (Dr.Jit Float) of 1/0: does a ray from the
+        centre of diode k's well opening toward the direction at the centre of cell (theta from
+        the normal, azimuth from u) of a 1 x 2 deg grid leave the satellite unblocked? Only
+        shapes the albedo sampling; None without an occluder mesh."""
+        if self._scene is None:
+            return None
+        dr, mi = self._dr, self._mi
+        th = (np.arange(_VIS_NT) + 0.5) * (0.5 * np.pi / _VIS_NT)
+        ph = (np.arange(_VIS_NP) + 0.5) * (2.0 * np.pi / _VIS_NP) - np.pi
+        TH, PH = np.meshgrid(th, ph, indexing="ij")
+        local = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1).reshape(-1, 3)
+        d = np.concatenate([local @ f for f in self.diodes.frames])
+        o = self.diodes.positions_m + self.diodes.frames[:, 2] * (self._ap_params[:, 4:5] + 1e-5)
+        o = np.repeat(o, len(local), axis=0)
+        blocked = self._scene.ray_test(mi.Ray3f(self._v3(o), self._v3(d)))
+        return mi.Float(dr.select(blocked, 0.0, 1.0))
+
+    def _albedo_proposal(self, t):
+        """Return per-task cap basis and bin CDF/PMF for the albedo sampling of tasks ``t``."""
+        R = self.earth_radius_m
+        earth = t["earth"]
+        dist = np.linalg.norm(earth, axis=-1)
+        w = earth / dist[:, None]
+        # 1 - cos(cap half-angle) = (R/d)^2 / (1 + cos): no cancellation for a distant Earth
+        xmax = (R / dist) ** 2 / (1.0 + np.sqrt(np.clip(1.0 - (R / dist) ** 2, 0.0, None)))
+        ref = np.where(np.abs(w[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+        e1 = np.cross(ref, w)
+        e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+        e2 = np.cross(w, e1)
+        # Radial bin edges between equal solid angle and equal central angle g from the
+        # sub-satellite point (equal solid angle alone makes the bins near the limb span ~15 deg
+        # of ground, where the terminator hides between corners), as fractions t of the cap's
+        # solid angle: tan(theta) = R sin g / (d - R cos g).
+        g_max = np.arccos(np.clip(R / dist, -1.0, 1.0))
+        g = g_max[:, None] * np.linspace(0.0, 1.0, _N_T + 1)[None, :]
+        theta = np.arctan2(R * np.sin(g), dist[:, None] - R * np.cos(g))
+        tedge = 2.0 * np.sin(theta / 2) ** 2 / xmax[:, None]
+        tedge = _EDGE_MIX * tedge + (1 - _EDGE_MIX) * np.linspace(0.0, 1.0, _N_T + 1)[None, :]
+        tedge[:, 0], tedge[:, -1] = 0.0, 1.0
+        margin = _MARGIN_SCALE * np.sin(0.5 * np.maximum(g_max / _N_T, 2 * np.pi * np.sin(g_max) / _N_P))
+        prop = dict(w=w, e1=e1, e2=e2, xmax=xmax, tedge=tedge, margin=margin)
+        n_points = (_N_T + 1) * (_N_P + 1)
+        f = self._trace_tasks(self._proposal_kernel, dict(t, **prop), n_points)
+        nc = (_N_T + 1) * (_N_P + 1)
+        fc = f[:, :nc].reshape(-1, _N_T + 1, _N_P + 1)
+        corner = np.maximum(np.maximum(fc[:, :-1, :-1], fc[:, 1:, :-1]), np.maximum(fc[:, :-1, 1:], fc[:, 1:, 1:]))
+        wbin = corner.reshape(len(f), -1)
+        tot = wbin.sum(axis=1, keepdims=True)
+        B = _N_T * _N_P
+        omega = np.repeat(np.diff(tedge, axis=1) / _N_P, _N_P, axis=1)   # bin solid angle / cap's
+        pmf = np.where(tot > 0, (1 - _DEFENSIVE) * wbin / np.where(tot > 0, tot, 1.0) + _DEFENSIVE * omega, omega)
+        cdf = np.cumsum(pmf, axis=1)
+        cdf /= cdf[:, -1:]
+        cdf[:, -1] = 1.0
+        return dict(prop, pmf=pmf.astype(np.float32), cdf=cdf.astype(np.float32))
+
+    def _trace_tasks(self, kernel, t, n_points):
+        """Return ``kernel(t, n_points)`` (T, n_points) for the tasks ``t`` in launches of bounded size."""
+        T = len(t["key"])
+        if T < 2:
+            return self._trace_tasks(kernel, _pad2(t), n_points)[:T]
+        per = max(2, _MAX_LANES // n_points)
+        n = -(-T // per)
+        edges = np.linspace(0, T, n + 1).round().astype(int)
+        return np.concatenate([kernel({k: (None if v is None else v[a:b]) for k, v in t.items()}, n_points)
+                               for a, b in zip(edges[:-1], edges[1:])])
+
+    # -- task assembly
+    def _tasks(self, ep, dk, sun, earth, keys=None):
+        dd = self._diode_f32
+        t = dict(k=dk, pos=dd["pos"][dk], U=dd["U"][dk], V=dd["V"][dk], n=dd["n"][dk], sun=sun[ep],
+                 frame=self.diodes.frames[dk], ap=self._ap_params[dk])
+        t["earth"] = None if earth is None else earth[ep] - dd["pos"][dk]
+        return t
+
+    def render(self, sun_dir_body, earth_center_body_m=None, R_ecef_from_body=None, sun_scale=None, *,
+               seed=0, epoch_offset=0, direct_samples=_DIRECT_SAMPLES0, albedo_samples=2 * _ALBEDO_STRATA0,
+               rel_se_direct=None, rel_se_albedo=None, abs_se_floor_w_m2=0.01,
+               max_direct_samples=1 << 17,
+               max_albedo_samples=65536, albedo=True, batch_epochs=64, progress=None):
+        """Return a :class:`RenderResult`: direct-Sun and albedo irradiance (N, K) in W/m^2 with
+        standard errors.
+
+        ``sun_dir_body`` (N, 3) unit satellite->Sun; ``earth_center_body_m`` (N, 3) the Earth's centre
+        in body axes with the satellite at the origin (None: no Earth, no albedo);
+        ``R_ecef_from_body`` (N, 3, 3) (needed for albedo); ``sun_scale`` (N,) multiplies E_sun
+        (e.g. (1 AU / r_sun)^2; default 1). ``direct_samples`` (4 m^2: 2 points in each of 2 m^2
+        strata) per diode in the first round; ``albedo_samples`` (even) in the first round.
+        ``rel_se_direct`` / ``rel_se_albedo``: target relative standard errors (e.g. 0.002, 0.01)
+        met by further rounds for the diode-epochs above it (or above ``abs_se_floor_w_m2``),
+        up to ``max_*_samples`` each. ``epoch_offset``: global index of the first epoch, so that a
+        run rendered in pieces draws the same random numbers as in one go. ``albedo=False`` skips
+        the albedo (zeros). ``batch_epochs``: epochs per wavefront (results do not depend on it).
+        ``progress``: optional callable, called with the number of epochs done after each batch.
+
+        Per-epoch problems (non-finite inputs) give NaN rows and ``valid`` False; exact zeros
+        (Sun behind the diode, full eclipse, no sunlit Earth in the diode's half-space) cost no
+        rays and report 0 samples.
+        """
+        if self._mi.variant() != self.variant:     # someone switched Mitsuba's global variant
+            self._mi.set_variant(self.variant)
+        sun = np.atleast_2d(np.asarray(sun_dir_body, dtype=float))
+        N = sun.shape[0]
+        if sun.shape != (N, 3):
+            raise ValueError(f"sun_dir_body must have shape (N, 3), got {np.shape(sun_dir_body)}")
+        earth = None
+        if earth_center_body_m is not None:
+            earth = np.atleast_2d(np.asarray(earth_center_body_m, dtype=float))
+            if earth.shape != (N, 3):
+                raise ValueError(f"earth_center_body_m must have shape ({N}, 3) like sun_dir_body, "
+                                 f"got {earth.shape}")
+        do_albedo = bool(albedo) and earth is not None
+        rot = None
+        if do_albedo:
+            if R_ecef_from_body is None:
+                raise ValueError("albedo needs R_ecef_from_body (N, 3, 3) to find where on the Earth a ray "
+                                 "lands; pass it, or albedo=False")
+            rot = np.asarray(R_ecef_from_body, dtype=float).reshape(-1, 3, 3)
+            if rot.shape != (N, 3, 3):
+                raise ValueError(f"R_ecef_from_body must have shape ({N}, 3, 3), got {np.shape(R_ecef_from_body)}")
+        scale = np.ones(N) if sun_scale is None else np.broadcast_to(np.asarray(sun_scale, dtype=float), (N,))
+        m0 = int(round(np.sqrt(int(direct_samples) / 4.0)))
+        if m0 < 2 or 4 * m0 * m0 != int(direct_samples):
+            raise ValueError(f"direct_samples must be 4 m^2 for an integer m >= 2 (2 points in each of "
+                             f"2 m^2 strata), e.g. 1024 or 4096, got {direct_samples}")
+        n0 = int(albedo_samples)
+        if n0 < 4 or n0 % 2:
+            raise ValueError(f"albedo_samples must be an even number >= 4 (2 per stratum), got {albedo_samples}")
+        for name, v in (("rel_se_direct", rel_se_direct), ("rel_se_albedo", rel_se_albedo)):
+            if v is not None and not 0 < v < 1:
+                raise ValueError(f"{name} must be a relative standard error in (0, 1), e.g. 0.002, got {v}")
+
+        valid = np.all(np.isfinite(sun), axis=1) & np.isfinite(scale)
+        if earth is not None:
+            valid &= np.all(np.isfinite(earth), axis=1)
+            dist = np.linalg.norm(earth, axis=1)
+            inside = valid & (dist <= self.earth_radius_m)
+            if np.any(inside):
+                raise ValueError(f"the satellite is inside the Earth at epoch {int(np.argmax(inside))} "
+                                 f"(|earth_center_body_m| = {dist[np.argmax(inside)]:.0f} m <= R = "
+                                 f"{self.earth_radius_m:.0f} m); earth_center_body_m is the Earth's centre "
+                                 "relative to the satellite, in metres")
+        if do_albedo:
+            valid &= np.all(np.isfinite(rot), axis=(1, 2))
+        sun = np.where(valid[:, None], sun, [[0.0, 0.0, 1.0]])
+        sun = _unit(sun, "sun_dir_body")
+        if earth is not None:
+            earth = np.where(valid[:, None], earth, [[0.0, 0.0, -2.0 * self.earth_radius_m]])
+        if rot is not None:
+            rot = np.where(valid[:, None, None], rot, np.eye(3))
+
+        K = self.diodes.count
+        out = {k: np.zeros((N, K)) for k in ("dm", "dse", "am", "ase")}
+        n_dir = np.zeros((N, K), dtype=np.int64)
+        n_alb = np.zeros((N, K), dtype=np.int64)
+        E = self.e_sun_w_m2 * scale                                  # (N,)
+        cos_c = sun @ self.diodes.frames[:, 2].T                    # (N, K) float64
+        R = self.earth_radius_m
+        sin_a = np.sin(self.sun_angular_radius_rad)
+        for b0 in range(0, N, batch_epochs):
+            eps = np.arange(b0, min(N, b0 + batch_epochs))
+            ep, dk = [a.ravel() for a in np.meshgrid(eps, np.arange(K), indexing="ij")]
+            g_ep = ep + int(epoch_offset)
+            # ---- direct Sun: tasks facing the (disc of the) Sun and not in full umbra
+            act = valid[ep] & (cos_c[ep, dk] > -sin_a)
+            if earth is not None:
+                c = earth[ep]
+                bb = np.einsum("ti,ti->t", c, sun[ep])
+                perp = np.linalg.norm(c - bb[:, None] * sun[ep], axis=1)
+                umbra = (bb > 0) & (perp < R - np.linalg.norm(c, axis=1) * sin_a - 10.0)
+                act &= ~umbra
+            e_, k_ = ep[act], dk[act]
+            if len(e_):
+                self._direct_rounds(e_, k_, g_ep[act], sun, earth, E, cos_c, seed, 4 * m0 * m0, rel_se_direct,
+                                    abs_se_floor_w_m2, max_direct_samples, out, n_dir)
+            # ---- albedo: tasks whose hemisphere meets the Earth's disc and a sunlit part of it
+            if do_albedo:
+                c = earth[ep]
+                dist = np.linalg.norm(c, axis=1)
+                w = c / dist[:, None]
+                sin_cap = R / dist                                   # sin of the cap half-angle
+                n = self.diodes.frames[dk, 2]
+                # angle(n, w) < 90 deg + cap half-angle  <=>  n . w > -sin(cap)
+                sees = np.einsum("ti,ti->t", n, w) > -sin_cap
+                # sunlit Earth in view: angle(zenith, s) < 90 deg + acos(R/d)
+                lam = np.arccos(np.clip(R / dist, -1, 1))
+                lit = np.einsum("ti,ti->t", -w, sun[ep]) > np.cos(np.minimum(np.pi / 2 + lam, np.pi))
+                act = valid[ep] & sees & lit
+                e_, k_ = ep[act], dk[act]
+                if len(e_):
+                    self._albedo_rounds(e_, k_, g_ep[act], sun, earth, rot, E, seed, n0, rel_se_albedo,
+                                        abs_se_floor_w_m2, max_albedo_samples, out, n_alb)
+            if progress is not None:
+                progress(len(eps))
+        nan = ~valid
+        for k in out:
+            out[k][nan] = np.nan
+        return RenderResult(out["dm"], out["dse"], out["am"], out["ase"], n_dir, n_alb, valid,
+                            self.variant, int(seed),
+                            dict(sun_angular_radius_rad=self.sun_angular_radius_rad, e_sun_w_m2=self.e_sun_w_m2))
+
+    def _rounds(self, kernel, base, kind, g_, k_, seed, n0, rel, floor, cap, fac, size, power, skip=None):
+        """Trace rounds of samples for the tasks in ``base`` until each meets its target standard
+        error (or the cap); return (mean, standard error, samples) per task, in lane units x fac.
+
+        With an analytic well per diode (``control_variate``), each task's samples are split into
+        group A, ~4/5 of them, drawn on the part of the diode that the analytic well lights
+        (``_well_rect``, weight = its area), and group B, ~1/5, drawn on the whole diode but
+        counted only outside that part. Both are traced against the full mesh, so the sum is
+        unbiased whatever the mesh; when the mesh's well is the analytic one, group B reads 0
+        and group A varies only where the body, rails or the Earth cut into the lit part.
+        ``skip`` (T, 2) marks groups known to be empty (point Sun, lit fraction 0 or 1).
+        """
+        T = len(g_)
+        acc = np.zeros((3, T))
+        todo = np.arange(T)
+        n = np.full(T, n0, dtype=np.int64)
+        split = self.control_variate
+        rnd = 0
+        while len(todo):
+            parts = []
+            if split:
+                na = size(np.maximum(n[todo] * 4 // 5, 1))
+                nb = size(np.maximum(n[todo] // 5, 1))
+                sa = np.zeros(len(todo), bool) if skip is None else skip[todo, 0]
+                sb = np.zeros(len(todo), bool) if skip is None else skip[todo, 1]
+                na = np.where(sb, size(n[todo]), na)        # only A: give it the whole budget
+                nb = np.where(sa, size(n[todo]), nb)
+                parts = [(1, todo[~sa], na[~sa]), (2, todo[~sb], nb[~sb])]
+            else:
+                parts = [(0, todo, size(n[todo]))]
+            idx = np.concatenate([p[1] for p in parts])
+            counts = np.concatenate([p[2] for p in parts]).astype(np.int64)
+            mode = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
+            t = {k: (None if v is None else v[idx]) for k, v in base.items()}
+            t["key"] = _mix32(seed, g_[idx], k_[idx], kind, rnd, mode)
+            t["mode"] = mode
+            t["m"] = _strata_param(kind, counts)
+            mean, var = _task_mean_var(self._trace(kernel, t, counts), counts)
+            est = np.zeros(T)
+            v = np.zeros(T)
+            nr = np.zeros(T)
+            np.add.at(est, idx, mean)
+            np.add.at(v, idx, var)
+            np.add.at(nr, idx, counts)
+            acc[0, todo] += nr[todo]
+            acc[1, todo] += nr[todo] * est[todo]
+            acc[2, todo] += nr[todo] ** 2 * v[todo]
+            if rel is None:
+                break
+            need, want = _shortfall(fac, acc, rel, floor, power)
+            # power 2 (albedo): the pooled error falls as 1/sqrt(n), add what the total lacks;
+            # power 4/3 (direct, shadow edges: n^-3/4): a fresh round sized to reach it alone.
+            add = want - acc[0] if power == 2.0 else want
+            n = np.minimum(np.maximum(add, 64), np.maximum(cap - acc[0], 0)).astype(np.int64)
+            need &= n >= 64
+            todo = np.flatnonzero(need)
+            rnd += 1
+        return fac * acc[1] / acc[0], fac * np.sqrt(acc[2]) / acc[0], acc[0]
+
+    def _direct_rounds(self, e_, k_, g_, sun, earth, E, cos_c, seed, n0, rel, floor, cap, out, n_used):
+        base = self._tasks(e_, k_, sun, earth, None)
+        disc = self.sun_angular_radius_rad > 0
+        fac = E[e_] * (1.0 if disc else cos_c[e_, k_])     # lane mean -> W/m^2
+        skip = None
+        if self.control_variate and not disc:
+            lit = self._lit_fraction(k_, sun[e_])
+            skip = np.stack([lit <= 0.0, lit >= 1.0], axis=1)
+        m, se, n = self._rounds(self._direct_kernel, base, 1, g_, k_, seed, n0, rel, floor, cap, fac,
+                                _direct_size, 4.0 / 3.0, skip)
+        out["dm"][e_, k_], out["dse"][e_, k_], n_used[e_, k_] = m, se, n
+
+    def _albedo_rounds(self, e_, k_, g_, sun, earth, rot, E, seed, n0, rel, floor, cap, out, n_used):
+        base = self._tasks(e_, k_, sun, earth, None)
+        base["rot"] = rot[e_]
+        base.update(self._albedo_proposal(dict(base, key=np.zeros(len(e_), np.uint32))))
+        m, se, n = self._rounds(self._albedo_kernel, base, 2, g_, k_, seed, n0, rel, floor, cap, E[e_],
+                                _albedo_size, 2.0)
+        out["am"][e_, k_], out["ase"][e_, k_], n_used[e_, k_] = m, se, n
+
+    def _lit_fraction(self, k_, d_body):
+        """Return the analytic wells' lit fractions (T,) for diodes k_ and body directions (T, 3)."""
+        ap = self._ap_params[k_]
+        dd = np.einsum("tij,tj->ti", self.diodes.frames[k_], d_body)
+        dn = dd[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sx = np.where(dn > 0, ap[:, 4] * dd[:, 0] / np.where(dn > 0, dn, 1.0), 0.0)
+            sy = np.where(dn > 0, ap[:, 4] * dd[:, 1] / np.where(dn > 0, dn, 1.0), 0.0)
+        lx = np.clip(np.minimum(ap[:, 0], ap[:, 2] - sx) - np.maximum(-ap[:, 0], -ap[:, 2] - sx), 0, None)
+        ly = np.clip(np.minimum(ap[:, 1], ap[:, 3] - sy) - np.maximum(-ap[:, 1], -ap[:, 3] - sy), 0, None)
+        return np.where(dn > 0, lx * ly / (4 * ap[:, 0] * ap[:, 1]), 0.0)
+
+
+def _direct_size(n):
+    """Return the direct sample counts >= n (4 m^2, m >= 2) for requested counts n."""
+    m = np.maximum(np.ceil(np.sqrt(np.asarray(n) / 4.0)), 2)
+    return (4 * m * m).astype(np.int64)
+
+
+def _albedo_size(n):
+    """Return the albedo sample counts >= n (even, >= 4)."""
+    return np.maximum(2 * np.ceil(np.asarray(n) / 2.0), 4).astype(np.int64)
+
+
+def _strata_param(kind, counts):
+    """Return the per-task stratification parameter the kernels read as t['m']: m for the
+    direct (4 m^2 samples), the number of strata for the albedo (2 samples each)."""
+    if kind == 1:
+        return np.round(np.sqrt(counts / 4.0))
+    return counts / 2.0
+
+
+def _task_mean_var(vals, counts):
+    """Return the mean (T,) and the variance of the mean (T,) of per-lane values laid out task
+    after task (``counts`` each) as strata of two samples (float64)."""
+    v = vals.astype(np.float64)
+    starts = np.cumsum(counts) - counts
+    mean = np.add.reduceat(v, starts) / counts
+    dif = v[0::2] - v[1::2]
+    m = counts // 2
+    var = np.add.reduceat(dif * dif, starts // 2) / (4.0 * m * m)
+    return mean, var
+
+
+def _pad2(t):
+    """Return the task dict padded to >= 2 tasks (a 1-element Dr.Jit array would become a
+    literal baked into the kernel, so every new value would compile a new kernel)."""
+    if len(t["key"]) >= 2:
+        return t
+    return {k: (None if v is None else np.concatenate([v, v])) for k, v in t.items()}
+
+
+def _shortfall(fac, acc, rel, floor, power):
+    """Return (tasks above their target standard error, samples the target needs, assuming
+    the error falls as n^(-1/power))."""
+    mean = fac * acc[1] / acc[0]
+    se = fac * np.sqrt(acc[2]) / acc[0]
+    target = np.maximum(rel * np.abs(mean), floor)
+    need = se > target
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        want = 1.2 * acc[0] * (se / target) ** power
+    want = np.nan_to_num(want, nan=1.0, posinf=1e18)
+    return need, want
+
+
+def render(diodes, sun_dir_body, earth_center_body_m=None, R_ecef_from_body=None, sun_scale=None, *,
+           occluder_mesh=None, reflectivity=None, sun_angular_radius_rad=0.0, variant=None,
+           e_sun_w_m2=E_SUN_W_M2, **kwargs):
+    """Return a :class:`RenderResult` (direct and albedo irradiance, W/m^2, (N, K)) for one call;
+    builds a :class:`Renderer` and calls :meth:`Renderer.render` (see both for the arguments)."""
+    r = Renderer(diodes, occluder_mesh, reflectivity=reflectivity, sun_angular_radius_rad=sun_angular_radius_rad,
+                 variant=variant, e_sun_w_m2=e_sun_w_m2)
+    return r.render(sun_dir_body, earth_center_body_m, R_ecef_from_body, sun_scale, **kwargs)
