@@ -23,7 +23,7 @@ import numpy as np
 
 # The 12 edges of a box as pairs of corner indices, corners indexed by bits (x, y, z) = (i & 1, i & 2, i & 4).
 _EDGES = [(a, a | bit) for bit in (1, 2, 4) for a in range(8) if not a & bit]
-_CORNER_SIGNS = np.array([[1 if i & 1 else -1, 1 if i & 2 else -1, 1 if i & 4 else -1] for i in range(8)], float)
+_CORNER_SIGNS = [(1 if i & 1 else -1, 1 if i & 2 else -1, 1 if i & 4 else -1) for i in range(8)]
 
 
 def box_hit(origins, dirs, half_m):
@@ -44,11 +44,15 @@ def box_hit(origins, dirs, half_m):
     return (t_in <= t_out) & (t_out > 0)
 
 
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
 def _convex_hull(points):
-    """Return the convex hull (counter-clockwise) of 2-D points (M, 2) (Andrew's monotone chain)."""
-    pts = sorted(set(map(tuple, np.round(points, 15))))
+    """Return the convex hull (counter-clockwise) of 2-D points, a list of (x, y) (Andrew's monotone chain)."""
+    pts = sorted(set(points))
     if len(pts) <= 2:
-        return np.array(pts)
+        return pts
 
     def cross(o, a, b):
         return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
@@ -61,11 +65,11 @@ def _convex_hull(points):
         while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
             upper.pop()
         upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    return lower[:-1] + upper[:-1]
 
 
 def _clip(poly, axis, bound, keep_below):
-    """Clip a polygon (M, 2) to the half-plane x[axis] <= bound (keep_below) or >= bound."""
+    """Clip a polygon (list of (x, y)) to the half-plane x[axis] <= bound (keep_below) or >= bound."""
     out = []
     m = len(poly)
     for i in range(m):
@@ -76,46 +80,56 @@ def _clip(poly, axis, bound, keep_below):
             out.append(a)
         if ina != inb:
             t = (bound - a[axis]) / (b[axis] - a[axis])
-            out.append(a + t * (b - a))
-    return np.array(out)
+            out.append((a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])))
+    return out
 
 
 def _area(poly):
     if len(poly) < 3:
         return 0.0
-    x, y = poly[:, 0], poly[:, 1]
-    return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    twice = 0.0
+    for i in range(len(poly)):
+        (x0, y0), (x1, y1) = poly[i], poly[(i + 1) % len(poly)]
+        twice += x0 * y1 - x1 * y0
+    return 0.5 * abs(twice)
 
 
 def shadow_polygon(position_m, frame, d, half_m):
-    """Return the box's shadow on the diode plane along ``d`` as a convex polygon (M, 2) in the
-    diode's (u, v) coordinates about its centre (empty when nothing is in front of the plane)."""
-    p = np.asarray(position_m, float)
-    u, v, n = frame
-    corners = _CORNER_SIGNS * np.asarray(half_m, float)
-    s = (corners - p) @ n                        # height of each corner above the diode plane
+    """Return the box's shadow on the diode plane along ``d`` as a convex polygon, a list of (u, v)
+    points about the diode's centre (empty when no part of the box is in front of the plane)."""
+    p = [float(x) for x in position_m]
+    u, v, n = ([float(x) for x in row] for row in frame)
+    d = [float(x) for x in d]
+    hx, hy, hz = (float(x) for x in half_m)
+    corners = [(sx * hx, sy * hy, sz * hz) for sx, sy, sz in _CORNER_SIGNS]
+    s = [_dot((c[0] - p[0], c[1] - p[1], c[2] - p[2]), n) for c in corners]   # height above the diode plane
     pts = [corners[i] for i in range(8) if s[i] >= 0]
     for a, b in _EDGES:
         if (s[a] > 0) != (s[b] > 0) and s[a] != s[b]:
             t = s[a] / (s[a] - s[b])
-            pts.append(corners[a] + t * (corners[b] - corners[a]))
+            ca, cb = corners[a], corners[b]
+            pts.append((ca[0] + t * (cb[0] - ca[0]), ca[1] + t * (cb[1] - ca[1]), ca[2] + t * (cb[2] - ca[2])))
     if not pts:
-        return np.zeros((0, 2))
-    pts = np.array(pts)
-    dn = float(d @ n)
-    proj = pts - np.outer((pts - p) @ n / dn, d) - p
-    return _convex_hull(np.column_stack([proj @ u, proj @ v]))
+        return []
+    dn = _dot(d, n)
+    out = []
+    for y in pts:
+        h = _dot((y[0] - p[0], y[1] - p[1], y[2] - p[2]), n) / dn
+        x = (y[0] - h * d[0] - p[0], y[1] - h * d[1] - p[1], y[2] - h * d[2] - p[2])
+        out.append((_dot(x, u), _dot(x, v)))
+    return _convex_hull(out)
 
 
 def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
     """Return the lit fraction (0..1) of one diode for one direction: its well's overlap minus the
     body box's shadow, exact."""
-    d = np.asarray(d_body, float)
     u, v, n = frame
-    dn = float(d @ n)
+    d = d_body
+    dn = float(d[0] * n[0] + d[1] * n[1] + d[2] * n[2])
     if dn <= 0:
         return 0.0
-    du, dv = float(d @ u), float(d @ v)
+    du = float(d[0] * u[0] + d[1] * u[1] + d[2] * u[2])
+    dv = float(d[0] * v[0] + d[1] * v[1] + d[2] * v[2])
     ax, ay = aperture.diode_x_m / 2, aperture.diode_y_m / 2
     wx, wy = aperture.opening_x_m / 2, aperture.opening_y_m / 2
     sx, sy = -aperture.height_m * du / dn, -aperture.height_m * dv / dn
@@ -128,7 +142,7 @@ def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
     if len(poly) >= 3:
         for axis, bound, below in ((0, x1, True), (0, x0, False), (1, y1, True), (1, y0, False)):
             poly = _clip(poly, axis, bound, below)
-            if len(poly) == 0:
+            if not poly:
                 break
         lit -= _area(poly)
     return max(lit, 0.0) / (4 * ax * ay)
@@ -144,8 +158,13 @@ def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, hal
     below = d @ np.asarray(panel_normals, float).T < 0          # only these can meet the body
     front = np.einsum("nj,kj->nk", d, np.asarray(frames)[:, 2]) > 0
     todo = below & front if only is None else below & front & only
-    for n, k in np.argwhere(todo):
-        own = apertures[k].lit_fraction(d[n] @ frames[k].T)
-        if own > 0:
-            vis[n, k] = lit_fraction_with_box(apertures[k], frames[k], positions_m[k], d[n], half_m) / own
+    if not todo.any():
+        return vis
+    own = np.stack([apertures[k].lit_fraction(d @ np.asarray(frames[k]).T) for k in range(K)], axis=1)
+    todo &= own > 0
+    frame_l = [[[float(x) for x in row] for row in f] for f in frames]
+    pos_l = [[float(x) for x in p] for p in positions_m]
+    d_l = d.tolist()
+    for n, k in zip(*np.nonzero(todo)):
+        vis[n, k] = lit_fraction_with_box(apertures[k], frame_l[k], pos_l[k], d_l[n], half_m) / own[n, k]
     return vis
