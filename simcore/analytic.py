@@ -361,14 +361,26 @@ def _disc_directions(sun_body, offsets):
     return d / np.linalg.norm(d, axis=2, keepdims=True)
 
 
-def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad):
+def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None):
     """Return the direct-Sun response (N, K): the aperture response, times the body box's visibility,
-    averaged over the solar disc when it has a radius (its shadow edges are then soft, as traced)."""
+    averaged over the solar disc when it has a radius (its shadow edges are then soft, as traced).
+
+    With ``earth_body_m`` (N, 3), the Earth's centre seen from the satellite in body axes, the
+    average runs over the part of the disc the Earth leaves visible (penumbra: the Earth's limb and an
+    aperture edge can cut the same disc); the caller multiplies by the exact visible fraction.
+    """
     offsets = solar_disc_offsets(sun_angular_radius_rad) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
     dirs = _disc_directions(sun_body, offsets)
+    weights = np.ones(dirs.shape[:2])                                      # (M, N)
+    if earth_body_m is not None and len(dirs) > 1:
+        along = np.einsum("mnj,nj->mn", dirs, earth_body_m)
+        miss2 = np.einsum("nj,nj->n", earth_body_m, earth_body_m)[None] - along ** 2
+        weights = ~((along > 0) & (miss2 < radius_m ** 2))
+        weights = np.where(weights.any(axis=0), weights, True).astype(float)   # umbra by points: plain mean
+    weights = weights / weights.sum(axis=0)
     resp = np.stack([[r.response(d @ f.T) for d in dirs] for r, f in zip(resps, frames)], axis=2)  # (M, N, K)
     if body is None:
-        return resp.mean(axis=0)
+        return np.einsum("mn,mnk->nk", weights, resp)
     if not all(isinstance(r, _resp.WellAperture) for r in resps):
         raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture responses")
 
@@ -384,7 +396,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad):
     if edge.any() and len(dirs) > 1:
         for i in range(len(dirs)):
             v_all[i][edge] = vis(dirs[i], only=edge)[edge]
-    return (resp * v_all).mean(axis=0)
+    return np.einsum("mn,mnk->nk", weights, resp * v_all)
 
 
 # ---- public entry point ---------------------------------------------------------------------
@@ -449,8 +461,9 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     to_sun = to_sun / np.linalg.norm(to_sun, axis=1)[:, None]
     R_body_from_ecef = np.ascontiguousarray(np.swapaxes(R, 1, 2))
     sun_body = np.einsum("nij,nj->ni", R_body_from_ecef, to_sun)
-    direct = (_direct_response(sun_body, frames, resps, body, sun_angular_radius_rad) if direct
-              else np.zeros((n_ep, frames.shape[0])))
+    earth_body = np.einsum("nij,nj->ni", R_body_from_ecef, -r_sat) if eclipse == "conical" else None
+    direct = (_direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body, refl.radius_m)
+              if direct else np.zeros((n_ep, frames.shape[0])))
     # 1/r^2 for the direct Sun over the satellite -> Sun distance; the Earth's cells use the geocentric one.
     e_direct = sun_irradiance_w_m2(r_sun - r_sat, e_sun_w_m2, distance_scaling)
     direct = direct * (e_direct * lit)[:, None]
