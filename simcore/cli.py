@@ -248,6 +248,21 @@ def cmd_sweep(args):
     return 0
 
 
+def cmd_reproduce(args):
+    """The thesis' chapter-4 study on rendered irradiance: renders what is missing, writes the results page."""
+    from simcore.reproduce import reproduce
+    log = (lambda m: print(m, file=sys.stderr))
+    res = reproduce(args.folder, span=args.span, page_folder=args.page, log=log, render=not args.no_render,
+                    second_spin=None if args.span == "short" else args.second_spin,
+                    cross_map=args.span != "short", noise=True)
+    page = args.page or f"{args.folder}/page"
+    if args.json:
+        print(json.dumps({"page": page, "configs": list(res["configs"])}))
+    else:
+        print(f"results page: {page}/README.md ({len(res['configs'])} configurations, span {args.span})")
+    return 0
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {simcore.__version__}")
@@ -310,6 +325,17 @@ def build_parser():
     w.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default %(default)s)")
     w.add_argument("--json", action="store_true")
     w.set_defaults(func=cmd_sweep)
+
+    rp = sub.add_parser("reproduce", help="the thesis' chapter-4 study on rendered irradiance, with a results page")
+    rp.add_argument("--span", choices=["day", "orbits", "short"], default="day",
+                    help="the whole day at 1 s, the thesis' two orbits 1.8e4-2.8e4 s, or a 600 s demonstration")
+    rp.add_argument("--folder", default="runs/thesis", help="where the run files go (default %(default)s)")
+    rp.add_argument("--page", help="where the results page goes (default FOLDER/page)")
+    rp.add_argument("--second-spin", type=float, default=0.5, metavar="DEG_S",
+                    help="second tumble rate, rendered over the two orbits (default %(default)s)")
+    rp.add_argument("--no-render", action="store_true", help="evaluate only the run files already there")
+    rp.add_argument("--json", action="store_true")
+    rp.set_defaults(func=cmd_reproduce)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)
