@@ -361,15 +361,20 @@ def _disc_directions(sun_body, offsets):
     return d / np.linalg.norm(d, axis=2, keepdims=True)
 
 
-def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None):
+def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None,
+                     rings=3, refine_rings=11):
     """Return the direct-Sun response (N, K): the aperture response, times the body box's visibility,
     averaged over the solar disc when it has a radius (its shadow edges are then soft, as traced).
 
     With ``earth_body_m`` (N, 3), the Earth's centre seen from the satellite in body axes, the
     average runs over the part of the disc the Earth leaves visible (penumbra: the Earth's limb and an
     aperture edge can cut the same disc); the caller multiplies by the exact visible fraction.
+
+    The disc is sampled by ``rings`` equal-area rings (37 points); where the response has a kink
+    inside the disc (the diode's horizon or the well's cut-off or full-light edge crosses it) the
+    average is taken again with ``refine_rings`` (397 points).
     """
-    offsets = solar_disc_offsets(sun_angular_radius_rad) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
+    offsets = solar_disc_offsets(sun_angular_radius_rad, rings) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
     dirs = _disc_directions(sun_body, offsets)
     weights = np.ones(dirs.shape[:2])                                      # (M, N)
     if earth_body_m is not None and len(dirs) > 1:
@@ -379,24 +384,51 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         weights = np.where(weights.any(axis=0), weights, True).astype(float)   # umbra by points: plain mean
     weights = weights / weights.sum(axis=0)
     resp = np.stack([[r.response(d @ f.T) for d in dirs] for r, f in zip(resps, frames)], axis=2)  # (M, N, K)
+    kink = np.zeros(resp.shape[1:], bool)
+    if len(dirs) > 1 and refine_rings > rings:
+        # Probe the disc's very edge too: the quadrature rings stop short of it.
+        ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+        rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
+        probe = np.concatenate([dirs, rim])
+        for k, (r, f) in enumerate(zip(resps, frames)):
+            pr = np.stack([r.response(d @ f.T) for d in probe])
+            kink[:, k] = (pr == 0).any(axis=0) & (pr > 0).any(axis=0)
+            if isinstance(r, _resp.WellAperture) and r.height_m > 0:
+                lit = np.stack([r.lit_fraction(d @ f.T) for d in probe])
+                kink[:, k] |= (lit == 1).any(axis=0) & (lit < 1).any(axis=0)
+
+    def refined(out):
+        rows = np.flatnonzero(kink.any(axis=1))
+        if rows.size:
+            fine = _direct_response(sun_body[rows], frames, resps, body, sun_angular_radius_rad,
+                                    None if earth_body_m is None else earth_body_m[rows], radius_m,
+                                    rings=refine_rings, refine_rings=0)
+            out[rows] = np.where(kink[rows], fine, out[rows])
+        return out
     if body is None:
-        return np.einsum("mn,mnk->nk", weights, resp)
+        return refined(np.einsum("mn,mnk->nk", weights, resp))
     if not all(isinstance(r, _resp.WellAperture) for r in resps):
         raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture responses")
 
     def vis(d, only=None):
         return direct_visibility(resps, frames, body.positions_m, body.panel_normals, d, body.half_m, only)
     # The box's shadow edge crosses the solar disc only for a few diode-epochs: find them from the
-    # centre and the outermost ring, and average over the whole disc there alone.
-    outer = min(len(dirs) - 1, 18)                       # the outermost ring: 18 points, 6 probed
-    probe = [0] + list(range(len(dirs) - outer, len(dirs), 3))
+    # centre and six points spread around the outermost ring (6 r points), and average over the whole
+    # disc there alone. Where the well lets no light through, visibility is undefined (NaN).
+    n_ring = 6 * rings
+    probe = [0] + list(range(len(dirs) - n_ring, len(dirs), max(rings, 1))) if len(dirs) > 1 else [0]
     v_probe = np.stack([vis(dirs[i]) for i in probe])
-    edge = np.any(v_probe != v_probe[0], axis=0) | ((v_probe[0] > 0) & (v_probe[0] < 1))
-    v_all = np.broadcast_to(v_probe[0], resp.shape).copy()
+    undefined = np.isnan(v_probe).any(axis=0)
+    lo = np.where(np.isnan(v_probe), np.inf, v_probe).min(axis=0)
+    hi = np.where(np.isnan(v_probe), -np.inf, v_probe).max(axis=0)
+    seen = np.isfinite(lo)
+    partial = seen & (lo > 0) & (lo < 1)
+    edge = (resp > 0).any(axis=0) & ((seen & (hi > lo)) | partial | undefined)
+    v_all = np.broadcast_to(np.where(seen, lo, 1.0), resp.shape).copy()
     if edge.any() and len(dirs) > 1:
         for i in range(len(dirs)):
             v_all[i][edge] = vis(dirs[i], only=edge)[edge]
-    return np.einsum("mn,mnk->nk", weights, resp * v_all)
+    return refined(np.einsum("mn,mnk->nk", weights, resp * np.nan_to_num(v_all, nan=1.0)))
 
 
 # ---- public entry point ---------------------------------------------------------------------

@@ -151,7 +151,8 @@ def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
 def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, half_m, only=None):
     """Return (N, K): lit fraction with the body box over the well's own lit fraction (1 where the box
     blocks nothing, 0 where it hides the whole lit area), for unit Sun directions ``d_body`` (N, 3);
-    ``only`` (N, K) bool restricts the work to those pairs (the others read 1)."""
+    ``only`` (N, K) bool restricts the work to those pairs (the others read 1). NaN where the body
+    could block but the well itself lets no light through (the ratio is undefined there)."""
     d = np.atleast_2d(np.asarray(d_body, float))
     N, K = d.shape[0], len(frames)
     vis = np.ones((N, K))
@@ -161,6 +162,7 @@ def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, hal
     if not todo.any():
         return vis
     own = np.stack([apertures[k].lit_fraction(d @ np.asarray(frames[k]).T) for k in range(K)], axis=1)
+    vis[todo & (own <= 0)] = np.nan
     todo &= own > 0
     frame_l = [[[float(x) for x in row] for row in f] for f in frames]
     pos_l = [[float(x) for x in p] for p in positions_m]

@@ -266,7 +266,7 @@ def execute(opts, *, progress=None, log=None):
     todo = [r for r in ranges if r not in done]
     if done:
         log(f"resuming: {len(done)} of {len(ranges)} chunks already in {store.folder}")
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
     bar = tqdm(total=len(study.epochs), initial=sum(b - a for a, b in done), unit="epoch",
                disable=(not sys.stderr.isatty()) if progress is None else not progress, desc="rendering")
     try:
