@@ -233,7 +233,7 @@ def write_page(results, page_folder):
     for f in sorted(os.listdir(page_folder)):
         if f.endswith(".png"):
             lines.append(f"![{f}]({f})")
-    discussion = os.path.join(os.path.dirname(__file__), "reproduction_discussion.md")
+    discussion = os.path.join(page_folder, "discussion.md")   # hand-written, kept across regenerations
     if os.path.exists(discussion):
         lines += ["", open(discussion).read()]
     with open(os.path.join(page_folder, "README.md"), "w") as f:
