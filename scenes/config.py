@@ -222,7 +222,7 @@ def _sign(s):
     return "0" if s == 0 else f"{s:+d}"
 
 
-def _expand_layout(layout, where="[layout]"):
+def expand_layout(layout, where="[layout]"):
     """Return the diode tables of a parametric layout (SPEC sec. 5), in the shipped index order."""
     pattern = layout["pattern"]
     if pattern is None:
@@ -438,7 +438,7 @@ class SatelliteConfig:
             layout = _merged(data["layout"], LAYOUT_DEFAULTS, "layout")
             if extra_flat_diodes is not None:
                 layout["extra_flat_diodes"] = bool(extra_flat_diodes)
-            tables += _expand_layout(layout)
+            tables += expand_layout(layout)
         elif extra_flat_diodes:
             raise ConfigError(f"{where}: extra_flat_diodes needs a [layout]; add the flat diodes as [[diode]] entries")
         explicit = data.get("diode", [])

@@ -92,6 +92,8 @@ def _add_render_options(p):
     p.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"),
                    help="fixed samples per diode-epoch instead of --accuracy (direct: a power of 4)")
     p.add_argument("--dead", type=int, nargs="*", default=[], metavar="I", help="dead diode indices")
+    p.add_argument("--extra-flat", action="store_true",
+                   help="add the two optional flat diodes on top and bottom (14-diode layouts)")
     p.add_argument("--map", default="toms2005", help="reflectivity map: toms2005, ceres2018-all, "
                    "ceres2018-clear or a .npz file (default %(default)s)")
     p.add_argument("--point-sun", action="store_true", help="a point Sun (no penumbra) instead of the 0.53 deg disc")
@@ -112,7 +114,7 @@ def run_options(args):
         step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude,
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
-        dead=tuple(args.dead), variant=args.variant, seed=args.seed, reflectivity=args.map,
+        dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
         sun_disc=not args.point_sun, chunk_epochs=args.chunk, output=args.output,
         fail_on_check=args.fail_on_check)
 
@@ -265,6 +267,18 @@ def cmd_reproduce(args):
     return 0
 
 
+def cmd_aperture_sweep(args):
+    """Aperture height x tilt x FOV -> coverage, albedo fraction, estimator errors over one orbit."""
+    from simcore.aperture_study import run_aperture_sweep
+    rows = run_aperture_sweep(args.out, args.heights, args.tilts, args.fovs, step_s=args.step, dead=tuple(args.dead),
+                              log=(lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr)))
+    if args.json:
+        print(json.dumps({"out": args.out, "rows": len(rows)}))
+    else:
+        print(f"aperture sweep: {len(rows)} combinations; table and plot in {args.out} (sweep.md, sweep.csv, sweep.png)")
+    return 0
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {simcore.__version__}")
@@ -338,6 +352,13 @@ def build_parser():
     rp.add_argument("--no-render", action="store_true", help="evaluate only the run files already there")
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_reproduce)
+
+    from simcore.aperture_study import build_parser as _aperture_parser
+    ap = sub.add_parser("aperture-sweep", help="aperture height x tilt x FOV -> coverage, albedo fraction seen, "
+                                               "estimator error over an orbit")
+    _aperture_parser(ap)
+    ap.add_argument("--json", action="store_true")
+    ap.set_defaults(func=cmd_aperture_sweep)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)

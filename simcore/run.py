@@ -48,6 +48,7 @@ class RunOptions:
     direct_samples: int = 1024
     albedo_samples: int = 256
     dead: tuple = ()
+    extra_flat_diodes: bool = False    # the two optional flat diodes on top and bottom (diodes 14, 15)
     variant: str = None
     seed: int = 0
     reflectivity: str = "toms2005"
@@ -91,7 +92,8 @@ class Study:
         self.opts = opts
         if opts.step_s is None or not opts.step_s > 0:
             raise ValueError(f"--step must be a positive number of seconds, got {opts.step_s}")
-        self.config = SatelliteConfig.load(opts.config, dead=list(opts.dead))
+        self.config = SatelliteConfig.load(opts.config, dead=list(opts.dead),
+                                           extra_flat_diodes=True if opts.extra_flat_diodes else None)
         self.orbit = Orbit.default() if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
         duration = orbital_period_s(self.orbit) if opts.duration_s is None else opts.duration_s
         if not (np.isfinite(duration) and 0 < duration <= 400 * 86400):

@@ -1,0 +1,764 @@
+"""Aperture geometry studies: traced angular responses, aperture design, wall reflections,
+self-shadowing and a height x tilt x FOV sweep.
+
+What each part answers (the models it compares):
+
+* :func:`traced_black_response` -- the response of one diode in its well with black
+  walls, ray traced by :class:`simcore.render.Renderer` (the floor and well meshes of
+  :func:`scenes.geometry.mount_meshes`), for any set of directions; compared with the
+  analytic overlap (:meth:`simcore.aperture.WellAperture.response`) and with thesis
+  eq. 4.15 (:class:`simcore.response.Eq415Response`) by :func:`angular_cuts`,
+  :func:`response_map` and :func:`response_angles` (the 50 % / 1 % angles).
+* :func:`design_aperture` -- opening and height from a target FOV, cut-off, diode area
+  and height limit.
+* :mod:`simcore.walls` -- walls with a BSDF (matte black, bare aluminium, a user
+  value); :func:`wall_albedo_effect` puts the tabulated response into the albedo sum
+  of :func:`simcore.analytic.diode_irradiance` along an orbit.
+* :func:`self_shadowing` -- per diode, the part of its field of view that the body,
+  the ramps and the neighbouring mounts shadow (traced with the full satellite mesh)
+  against its own well alone.
+* :func:`sweep_apertures` -- well height x tilt x FOV -> coverage (green fraction),
+  albedo fraction seen and estimator errors over one orbit; :func:`run_aperture_sweep`
+  writes the table and plots (the command-line entry point).
+
+Where eq. 4.15 and the real well differ: eq. 4.15 is a function of the incidence
+angle only, ``A = C (C - c0)/(cos FOV - c0)`` between FOV and the 83.1 deg cut-off
+(C = cos theta). A square well's lit fraction is the product of two 1-D overlaps
+``(1 - max(0, h|tan_u| - g)/a)`` along its wall axes (g = (w - a)/2), so (i) along an axis it
+falls linearly in ``tan`` (not in ``cos``) from the FOV to the cut-off, and (ii) it depends on
+azimuth: towards the diagonal the shift along each wall axis is smaller (x cos 45 deg), so the diode
+stays fully lit up to ``atan(sqrt 2 tan FOV)`` (79.2 deg for FOV 75) and light reaches it up to
+``atan(sqrt 2 tan cutoff)`` (85.1 deg). Eq. 4.15 ignores azimuth and reads below the real (black)
+well everywhere between FOV and cut-off: by up to 0.034 of normal incidence on the wall axis and
+0.097 on the diagonal (FOV 75, near 79 deg), and zero on the diagonal where the diode still sees.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from simcore.aperture import EQ415_CUTOFF_DEG, WellAperture
+from simcore.constants import BPW34_AREA_M2
+
+MM = 1e-3
+DEFAULT_LEVELS = (0.5, 0.01)
+
+
+# ----------------------------------------------------------------------------- directions
+
+def cut_directions(theta_deg, phi_deg):
+    """Return unit directions (M, 3) in the diode frame (u, v, n) at incidence ``theta_deg`` (M,)
+    from the normal and azimuth ``phi_deg`` (scalar or (M,)) from the u axis (a wall axis; 45: diagonal)."""
+    t = np.radians(np.asarray(theta_deg, dtype=float))
+    p = np.radians(np.broadcast_to(np.asarray(phi_deg, dtype=float), t.shape))
+    return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
+
+
+def healpix_directions(nside=16):
+    """Return HEALPix pixel centres (12 nside^2, 3) (RING order), unit vectors; with the diode frame
+    as the coordinate frame the pole is the diode normal."""
+    import healpy as hp
+    return np.array(hp.pix2vec(int(nside), np.arange(hp.nside2npix(int(nside))))).T
+
+
+# ----------------------------------------------------------------------------- traced black well
+
+def well_config(aperture):
+    """Return a one-diode :class:`scenes.config.SatelliteConfig` holding ``aperture`` flat on the +z panel
+    (its diode frame is the body frame: u = x, v = y, n = z). The diode must be the square BPW34."""
+    from scenes.config import SatelliteConfig
+    side = float(np.sqrt(BPW34_AREA_M2))
+    if not (np.isclose(aperture.diode_x_m, side) and np.isclose(aperture.diode_y_m, side)):
+        raise ValueError("the traced well uses the configuration format, whose diode is the square BPW34 "
+                         f"({side / MM:.3f} mm); got {aperture.diode_x_m / MM:.3f} x {aperture.diode_y_m / MM:.3f} mm. "
+                         "Use simcore.walls.trace_well for other diodes")
+    well = {"height_mm": aperture.height_m / MM, "opening_mm": [aperture.opening_x_m / MM, aperture.opening_y_m / MM]}
+    return SatelliteConfig.from_dict({"name": "single_well", "diode": [
+        {"name": "well", "panel": "+z", "normal": [0.0, 0.0, 1.0], "at_mm": [0.0, 0.0], "well": well}]})
+
+
+def traced_black_response(aperture, d_diode, *, samples=4096, seed=0, control_variate=False, variant=None):
+    """Return (response (M,), standard error (M,)): the diode's response in its black-walled well for
+    unit directions ``d_diode`` (M, 3) (diode frame), ray traced by :class:`simcore.render.Renderer`
+    against the well's floor and wall meshes (:func:`scenes.geometry.mount_meshes`).
+
+    ``samples``: direct samples per direction (4 m^2, see ``Renderer.render``). ``control_variate``:
+    False (default) samples the whole diode, so the traced value is an independent check of the
+    overlap model; True uses the renderer's aperture split (zero noise where the mesh is the analytic well).
+    """
+    import trimesh
+    from scenes.geometry import mount_meshes
+    from simcore.render import DiodeSet, Renderer
+    d = np.atleast_2d(np.asarray(d_diode, dtype=float))
+    cfg = well_config(aperture)
+    parts = mount_meshes(cfg, 0)
+    mesh = trimesh.util.concatenate([parts[k] for k in ("floor", "well") if k in parts])
+    ds = DiodeSet.from_config(cfg)
+    r = Renderer(ds, mesh, e_sun_w_m2=1.0, control_variate=control_variate, variant=variant)
+    sun_body = d @ cfg.frames[0]
+    res = r.render(sun_body, None, direct_samples=int(samples), albedo=False, seed=int(seed))
+    return res.direct_w_m2[:, 0], res.direct_se_w_m2[:, 0]
+
+
+# ----------------------------------------------------------------------------- response figures
+
+def response_angles(theta_deg, response_rel, levels=DEFAULT_LEVELS):
+    """Return {level: angle_deg}: the largest incidence angle at which a response cut (relative to
+    normal incidence, sampled at increasing ``theta_deg``) still reaches ``level`` (e.g. 0.5 and
+    0.01: the 50 % and 1 % response angles), interpolated linearly; NaN if never reached."""
+    th = np.asarray(theta_deg, dtype=float)
+    r = np.asarray(response_rel, dtype=float)
+    if th.shape != r.shape or th.ndim != 1 or np.any(np.diff(th) <= 0):
+        raise ValueError("theta_deg must be increasing and response_rel the same shape (M,)")
+    out = {}
+    for lev in levels:
+        above = np.flatnonzero(r >= lev)
+        if above.size == 0:
+            out[lev] = float("nan")
+            continue
+        i = above[-1]
+        if i == len(th) - 1:
+            out[lev] = float(th[i])
+            continue
+        r0, r1 = r[i], r[i + 1]
+        out[lev] = float(th[i] + (th[i + 1] - th[i]) * (r0 - lev) / (r0 - r1))
+    return out
+
+
+def analytic_angles(aperture, phi_deg=0.0, levels=DEFAULT_LEVELS, step_deg=0.01):
+    """Return {level: angle_deg} of the analytic overlap response along azimuth ``phi_deg`` (fine grid)."""
+    th = np.arange(0.0, 90.0, step_deg)
+    return response_angles(th, aperture.response(cut_directions(th, phi_deg)), levels)
+
+
+def eq415_angles(fov_deg, levels=DEFAULT_LEVELS, step_deg=0.01):
+    """Return {level: angle_deg} of thesis eq. 4.15 with FOV ``fov_deg`` (any azimuth)."""
+    from simcore.response import Eq415Response
+    th = np.arange(0.0, 90.0, step_deg)
+    return response_angles(th, Eq415Response(fov_deg).response(cut_directions(th, 0.0)), levels)
+
+
+@dataclass
+class CutStudy:
+    """Angular response cuts of one aperture: ``curves[phi]`` maps a model name to (M,) responses
+    relative to normal incidence at ``theta_deg``; ``errors[phi]`` the standard errors of traced
+    curves; ``angles`` rows {phi_deg, model, level, angle_deg}."""
+
+    aperture: WellAperture
+    fov_deg: float
+    theta_deg: np.ndarray
+    curves: dict
+    errors: dict
+    angles: list = field(default_factory=list)
+
+
+def angular_cuts(aperture, *, fov_deg=None, theta_deg=None, phi_deg=(0.0, 45.0), materials=(), samples=4096,
+                 rays=50_000, seed=0, levels=DEFAULT_LEVELS):
+    """Return a :class:`CutStudy`: response cuts of ``aperture`` along azimuths ``phi_deg`` (``theta_deg``
+    increasing, from 0; the 50 % / 1 % angles of every curve are interpolated on that same grid, so
+    use a fine grid near the cut-off) with the
+    traced black well (renderer), the analytic overlap, eq. 4.15 (``fov_deg``, default: the angle up to
+    which the diode is fully lit along the wall axes), cos theta, and the well traced with each
+    :class:`simcore.walls.WallMaterial` in ``materials`` (``rays`` paths per direction; the overlap plus
+    the traced reflections, ``WellTrace.response_cv``). Curve names: 'traced black', 'overlap',
+    'eq. 4.15', 'cos' and each material's label."""
+    from simcore.response import Eq415Response
+    from simcore.walls import trace_well
+    th = np.arange(0.0, 90.0, 2.5) if theta_deg is None else np.asarray(theta_deg, dtype=float)
+    if fov_deg is None:
+        fov_deg = float(np.degrees(np.arctan2((aperture.opening_x_m - aperture.diode_x_m) / 2, aperture.height_m)))
+    eq = Eq415Response(fov_deg)
+    curves, errs, angles = {}, {}, []
+    for phi in phi_deg:
+        d = cut_directions(th, phi)
+        c, e = {}, {}
+        tb, tb_se = traced_black_response(aperture, d, samples=samples, seed=seed)
+        c["traced black"], e["traced black"] = tb, tb_se
+        c["overlap"] = aperture.response(d)
+        c["eq. 4.15"] = eq.response(d)
+        c["cos"] = np.clip(d[:, 2], 0, None)
+        for mat in materials:
+            tr = trace_well(aperture, d, mat, rays=rays, seed=seed)
+            name = mat.label
+            c[name], e[name] = tr.response_cv, tr.response_cv_se
+        for name, y in c.items():
+            a = response_angles(th, y, levels)
+            for lev in levels:
+                angles.append({"phi_deg": float(phi), "model": name, "level": lev, "angle_deg": a[lev]})
+        curves[float(phi)], errs[float(phi)] = c, e
+    return CutStudy(aperture, float(fov_deg), th, curves, errs, angles)
+
+
+def plot_cuts(study, path=None, zoom_from_deg=None):
+    """Return a list of Figures (one per azimuth) of a :class:`CutStudy` with
+    :func:`simcore.plots.plot_angular_response`; ``zoom_from_deg`` (e.g. 60) draws only the angles from
+    there on; ``path`` (e.g. 'out/cut') writes ``path_phi<phi>.png``."""
+    from simcore.plots import plot_angular_response
+    figs = []
+    keep = np.ones(study.theta_deg.shape, bool) if zoom_from_deg is None else study.theta_deg >= zoom_from_deg
+    for phi, c in study.curves.items():
+        p = None if path is None else f"{path}_phi{phi:g}.png"
+        where = "wall axis" if phi == 0 else ("diagonal" if phi == 45 else f"azimuth {phi:g} deg")
+        figs.append(plot_angular_response(study.theta_deg[keep], {k: v[keep] for k, v in c.items()},
+                                          fov_deg=study.fov_deg, cutoff_deg=EQ415_CUTOFF_DEG,
+                                          errors={k: v[keep] for k, v in study.errors[phi].items()}, path=p,
+                                          title=f"Angular response along the {where} (phi = {phi:g} deg)"))
+    return figs
+
+
+@dataclass
+class ResponseMap:
+    """A diode's response over the sphere: HEALPix directions ``d_diode`` (P, 3) (diode frame, pole =
+    normal), the traced response and its standard error, the analytic overlap and eq. 4.15."""
+
+    nside: int
+    d_diode: np.ndarray
+    traced: np.ndarray
+    traced_se: np.ndarray
+    overlap: np.ndarray
+    eq415: np.ndarray
+    label: str
+
+    @property
+    def z_score(self):
+        """Return (traced - overlap) / SE where SE > 0 (0 elsewhere): the black-wall check per direction."""
+        diff = self.traced - self.overlap
+        return np.where(self.traced_se > 0, diff / np.where(self.traced_se > 0, self.traced_se, 1.0), 0.0)
+
+
+def response_map(aperture, *, nside=16, fov_deg=None, material=None, samples=1024, rays=20_000, seed=0):
+    """Return a :class:`ResponseMap` over the whole sphere (HEALPix ``nside``): black walls traced by the
+    renderer (``material`` None) or the well traced with a :class:`simcore.walls.WallMaterial`."""
+    from simcore.response import Eq415Response
+    from simcore.walls import trace_well
+    d = healpix_directions(nside)
+    front = d[:, 2] > 0
+    tr, se = np.zeros(len(d)), np.zeros(len(d))
+    if material is None:
+        tr[front], se[front] = traced_black_response(aperture, d[front], samples=samples, seed=seed)
+        label = "traced, black walls"
+    else:
+        t = trace_well(aperture, d[front], material, rays=rays, seed=seed)
+        tr[front], se[front] = t.response, t.response_se
+        label = f"traced, {material.label}"
+    if fov_deg is None:
+        fov_deg = float(np.degrees(np.arctan2((aperture.opening_x_m - aperture.diode_x_m) / 2, aperture.height_m)))
+    return ResponseMap(int(nside), d, tr, se, aperture.response(d), Eq415Response(fov_deg).response(d), label)
+
+
+def plot_response_map(rmap, path=None):
+    """Return a Figure: the traced response over the diode's hemisphere (polar plot: radius = incidence
+    angle, angle = azimuth from the u wall axis), traced - overlap in standard errors, and eq. 4.15 -
+    overlap; ``path`` writes it (.png/.pdf)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.tri import Triangulation
+    from simcore.plots import save_figure
+    d = rmap.d_diode
+    keep = d[:, 2] > -0.05
+    th = np.degrees(np.arccos(np.clip(d[keep, 2], -1, 1)))
+    ph = np.arctan2(d[keep, 1], d[keep, 0])
+    x, y = th * np.cos(ph), th * np.sin(ph)
+    tri = Triangulation(x, y)
+    fig = Figure(figsize=(13.5, 4.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 3)
+    panels = [(rmap.traced[keep], f"{rmap.label}: response", "viridis", (0, 1)),
+              (rmap.z_score[keep], "(traced - overlap) / SE", "coolwarm", (-4, 4)),
+              ((rmap.eq415 - rmap.overlap)[keep], "eq. 4.15 - overlap", "coolwarm", None)]
+    for ax, (val, title, cmap, lim) in zip(axes, panels):
+        if lim is None:
+            m = float(np.max(np.abs(val))) or 1.0
+            lim = (-m, m)
+        pc = ax.tripcolor(tri, val, shading="gouraud", cmap=cmap, vmin=lim[0], vmax=lim[1])
+        for r in (30, 60, 90):
+            t = np.linspace(0, 2 * np.pi, 200)
+            ax.plot(r * np.cos(t), r * np.sin(t), color="0.3", lw=0.5)
+        ax.plot([-90, 90], [0, 0], color="0.3", lw=0.4)
+        ax.plot([0, 0], [-90, 90], color="0.3", lw=0.4)
+        ax.set_aspect("equal")
+        ax.set_xlim(-95, 95)
+        ax.set_ylim(-95, 95)
+        ax.set_xlabel("theta cos(phi) [deg] (u wall axis)")
+        ax.set_ylabel("theta sin(phi) [deg] (v wall axis)")
+        ax.set_title(title, fontsize=10)
+        fig.colorbar(pc, ax=ax, shrink=0.8)
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+# ----------------------------------------------------------------------------- design
+
+@dataclass(frozen=True)
+class ApertureDesign:
+    """A designed well: the aperture, the FOV (full response along the wall axes) and cut-off it
+    realises (axis and diagonal), whether the height limit bound it, and its response angles
+    {(phi_deg, level): angle_deg} (analytic overlap, exact for black walls)."""
+
+    aperture: WellAperture
+    fov_deg: float
+    cutoff_deg: float
+    cutoff_diagonal_deg: float
+    height_limited: bool
+    angles: dict
+
+    @property
+    def opening_mm(self):
+        return self.aperture.opening_x_m / MM
+
+    @property
+    def height_mm(self):
+        return self.aperture.height_m / MM
+
+
+def design_aperture(fov_deg, *, cutoff_deg=EQ415_CUTOFF_DEG, diode_area_m2=BPW34_AREA_M2, max_height_m=None,
+                    keep="fov", levels=DEFAULT_LEVELS):
+    """Return an :class:`ApertureDesign`: the square well over a square diode of ``diode_area_m2`` that
+    lights the whole diode up to ``fov_deg`` along the wall axes and none of it beyond ``cutoff_deg``
+    (eq. 4.15: ``w - a = 2 h tan FOV``, ``w + a = 2 h tan cutoff``), within ``max_height_m``.
+
+    The two angles fix ``h = a / (tan cutoff - tan FOV)``; when that exceeds the height limit the well
+    is made ``max_height_m`` tall and ``keep`` says which angle survives: 'fov' (the opening still gives
+    full response to the FOV; the cut-off moves out) or 'cutoff' (no light beyond the cut-off; the
+    fully lit range shrinks).
+    """
+    if keep not in ("fov", "cutoff"):
+        raise ValueError(f"keep must be 'fov' or 'cutoff', got {keep!r}")
+    ap = WellAperture.design(fov_deg, cutoff_deg, diode_area_m2)
+    a = ap.diode_x_m
+    limited = max_height_m is not None and ap.height_m > float(max_height_m)
+    if limited:
+        h = float(max_height_m)
+        if not h > 0:
+            raise ValueError(f"max_height_m must be > 0, got {max_height_m}")
+        if keep == "fov":
+            w = a + 2 * h * np.tan(np.radians(fov_deg))
+        else:
+            w = 2 * h * np.tan(np.radians(cutoff_deg)) - a
+            if w < a:
+                raise ValueError(f"a well {h / MM:.3f} mm tall cannot cut off at {cutoff_deg} deg over a "
+                                 f"{a / MM:.3f} mm diode (it would need an opening smaller than the diode); "
+                                 "raise max_height_m or use keep='fov'")
+        ap = WellAperture(a, a, float(w), float(w), h)
+    h, w = ap.height_m, ap.opening_x_m
+    fov = float(np.degrees(np.arctan2((w - a) / 2, h))) if h > 0 else 90.0
+    cut = float(np.degrees(np.arctan2((w + a) / 2, h))) if h > 0 else 90.0
+    cut_diag = float(np.degrees(np.arctan(np.sqrt(2.0) * (w + a) / (2 * h)))) if h > 0 else 90.0
+    angles = {}
+    for phi in (0.0, 45.0):
+        for lev, ang in analytic_angles(ap, phi, levels).items():
+            angles[(phi, lev)] = ang
+    return ApertureDesign(ap, fov, cut, cut_diag, bool(limited), angles)
+
+
+# ----------------------------------------------------------------------------- wall reflections and albedo
+
+def one_orbit_geometry(*, step_s=10.0, start=None, orbit=None):
+    """Return the :class:`simcore.study.Geometry` of one orbital period (default ESTCube-1 from the thesis'
+    start, thesis tumble) at ``step_s``."""
+    from simcore.epochs import Epochs
+    from simcore.orbit import Orbit
+    from simcore.study import DEFAULT_START, compute_geometry, orbital_period_s
+    orbit = Orbit.default() if orbit is None else orbit
+    period = orbital_period_s(orbit)
+    return compute_geometry(orbit, Epochs.range(DEFAULT_START if start is None else start, period, float(step_s)))
+
+
+def wall_albedo_effect(config, materials, *, geometry=None, step_s=20.0, dead=(0,), theta_step_deg=3.0,
+                       phi_step_deg=9.0, rays=10_000, seed=0, tables=None):
+    """Return rows {material, albedo_mean_w_m2, albedo_ratio, direct_mean_w_m2, direct_ratio,
+    response_60/75/83deg} comparing, over the sunlit part of one orbit (live diodes of ``config``), the
+    Earth albedo and direct Sun picked up with reflecting walls (:class:`simcore.walls.TabulatedResponse`
+    per material) against black walls (the overlap model). Both use the numpy backend of
+    :func:`simcore.analytic.diode_irradiance` with the body box for the albedo; the direct Sun without the
+    box (its exact box clipping needs the overlap model). ``tables``: optional {label: TabulatedResponse}
+    (reused instead of tracing)."""
+    from simcore.analytic import BodyBox, diode_irradiance
+    from simcore.walls import TabulatedResponse
+    cfg = _as_config(config)
+    aps = cfg.apertures
+    if len({(a.opening_x_m, a.height_m) for a in aps}) != 1:
+        raise ValueError("wall_albedo_effect tabulates one well; this configuration mixes wells")
+    ap = aps[0]
+    g = one_orbit_geometry(step_s=step_s) if geometry is None else geometry
+    lit = g.illumination >= 1.0
+    live = np.ones(cfg.n_diodes, bool)
+    live[list(dead)] = False
+    body = BodyBox.from_config(cfg)
+    args = (g.r_sat_ecef_m[lit], g.r_sun_ecef_m[lit], g.R_ecef_from_body[lit], cfg.frames)
+
+    def irr(resp):
+        return diode_irradiance(*args, [resp] * cfg.n_diodes, backend="numpy", body=body, direct=False), \
+            diode_irradiance(*args, [resp] * cfg.n_diodes, backend="numpy", albedo=False)
+
+    alb0, dir0 = irr(ap)
+    a0 = float(alb0.albedo_w_m2[:, live].mean())
+    d0 = float(dir0.direct_w_m2[:, live].mean())
+    rows = [{"material": "black (overlap model)", "albedo_mean_w_m2": a0, "albedo_ratio": 1.0,
+             "direct_mean_w_m2": d0, "direct_ratio": 1.0}]
+    tables = {} if tables is None else dict(tables)
+    for mat in materials:
+        tab = tables.get(mat.label) or TabulatedResponse.trace(ap, mat, theta_step_deg=theta_step_deg,
+                                                              phi_step_deg=phi_step_deg, rays=rays, seed=seed)
+        tables[mat.label] = tab
+        alb, dr_ = irr(tab)
+        a = float(alb.albedo_w_m2[:, live].mean())
+        d = float(dr_.direct_w_m2[:, live].mean())
+        rows.append({"material": mat.label, "albedo_mean_w_m2": a, "albedo_ratio": a / a0,
+                     "direct_mean_w_m2": d, "direct_ratio": d / d0})
+    for row in rows:
+        resp = ap if row["material"].startswith("black (overlap") else tables[row["material"]]
+        for t in (60, 75, 83, 86):
+            row[f"response_{t}deg_axis"] = float(resp.response(cut_directions([t], 0.0))[0])
+    return rows, tables
+
+
+# ----------------------------------------------------------------------------- self-shadowing
+
+def _as_config(config):
+    from scenes.config import SatelliteConfig
+    return config if isinstance(config, SatelliteConfig) else SatelliteConfig.load(config)
+
+
+def self_shadowing(config, *, nside=8, samples=64, seed=0, loss_threshold=0.01, min_response=1e-6,
+                   reference="analytic", variant=None):
+    """Return rows (one per diode) of the shadowing of each diode's field of view by the rest of the
+    satellite: traced with the full mesh (:func:`scenes.geometry.build_satellite_mesh`: body, ramps,
+    floors, wells of all diodes) over HEALPix directions (``nside``) against its own well alone (the
+    analytic overlap, which the black-wall tracing of the well reproduces, see the tests; or, with
+    ``reference='traced'``, the renderer with only diode k's own floor + well,
+    :func:`scenes.geometry.mount_meshes`).
+
+    Columns: ``fov_sr`` (solid angle where the own-well response > ``min_response``: directions in the
+    diode plane, response ~1e-17, do not count), ``shadowed_fov_fraction``
+    (share of it where the traced response is more than ``loss_threshold`` and 3 SE below the own
+    well's), ``body_fov_fraction`` (the same for the body box alone, closed form,
+    :func:`simcore.occlusion.direct_visibility`), ``response_loss`` (response-weighted loss: 1 -
+    sum traced / sum own over the sphere), ``body_response_loss`` (box alone) and
+    ``neighbour_response_loss`` (the rest: ramps and other mounts).
+    """
+    from scenes.geometry import build_satellite_mesh
+    from simcore.analytic import BodyBox
+    from simcore.occlusion import direct_visibility
+    from simcore.render import DiodeSet, Renderer
+    cfg = _as_config(config)
+    d = healpix_directions(nside)
+    pix_sr = 4 * np.pi / len(d)
+    frames = cfg.frames
+    own = np.stack([a.response(d @ f.T) for a, f in zip(cfg.apertures, frames)], axis=1)      # (P, K)
+    if reference == "traced":
+        import trimesh
+        from scenes.geometry import mount_meshes
+        ds_all = DiodeSet.from_config(cfg)
+        for k in range(cfg.n_diodes):
+            parts = mount_meshes(cfg, k)
+            mesh_k = trimesh.util.concatenate([parts[p] for p in ("floor", "well") if p in parts])
+            ds = DiodeSet(ds_all.positions_m[k:k + 1], ds_all.frames[k:k + 1], ds_all.sizes_m[k:k + 1],
+                          (cfg.apertures[k],))
+            rk = Renderer(ds, mesh_k, e_sun_w_m2=1.0, variant=variant)
+            own[:, k] = rk.render(d, None, direct_samples=int(samples), albedo=False, seed=int(seed)).direct_w_m2[:, 0]
+    elif reference != "analytic":
+        raise ValueError(f"reference must be 'analytic' or 'traced', got {reference!r}")
+    r = Renderer(DiodeSet.from_config(cfg), build_satellite_mesh(cfg), e_sun_w_m2=1.0, variant=variant)
+    res = r.render(d, None, direct_samples=int(samples), albedo=False, seed=int(seed))
+    full, se = res.direct_w_m2, res.direct_se_w_m2
+    box = BodyBox.from_config(cfg)
+    vis_box = direct_visibility(cfg.apertures, frames, box.positions_m, box.panel_normals, d, box.half_m)
+    # the box's visibility is NaN where the well itself lets no light through (own response 0)
+    body_resp = np.where(own > 0, own * np.nan_to_num(vis_box, nan=0.0), 0.0)
+    rows = []
+    for k, dio in enumerate(cfg.diodes):
+        inside = own[:, k] > min_response
+        loss = own[:, k] - full[:, k]
+        shadowed = inside & (loss > loss_threshold * own[:, k]) & (loss > 3 * se[:, k])
+        body_sh = inside & (own[:, k] - body_resp[:, k] > loss_threshold * own[:, k])
+        tot = own[:, k].sum()
+        rows.append({"config": cfg.name, "diode": k, "name": dio.name, "fov_sr": float(inside.sum() * pix_sr),
+                     "shadowed_fov_fraction": float(shadowed.sum() / max(inside.sum(), 1)),
+                     "body_fov_fraction": float(body_sh.sum() / max(inside.sum(), 1)),
+                     "response_loss": float(1 - full[:, k].sum() / tot),
+                     "response_loss_se": float(np.sqrt((se[:, k] ** 2).sum()) / tot),
+                     "body_response_loss": float(1 - body_resp[:, k].sum() / tot),
+                     "neighbour_response_loss": float((body_resp[:, k].sum() - full[:, k].sum()) / tot)})
+    return rows
+
+
+def self_shadowing_table(configs=None, **kw):
+    """Return the rows of :func:`self_shadowing` for every configuration in ``configs``
+    (default: all shipped, :func:`scenes.config.list_configs`)."""
+    from scenes.config import list_configs
+    rows = []
+    for name in (list_configs() if configs is None else configs):
+        rows += self_shadowing(name, **kw)
+    return rows
+
+
+# ----------------------------------------------------------------------------- sweep
+
+def sweep_config(tilt_deg, fov_deg, height_mm=None, *, name=None):
+    """Return the 14-diode thesis layout (:mod:`scenes.config`, pattern 'thesis14') with ``tilt_deg`` and
+    every diode in a well of ``height_mm`` whose opening gives full response up to ``fov_deg`` along the
+    wall axes (``w = a + 2 h tan FOV``); ``height_mm`` None: the eq. 4.15 design (cut-off 83.1 deg).
+    Raises :class:`scenes.config.ConfigError` when the mounts do not fit (clearance, panel, overlap)."""
+    from scenes.config import LAYOUT_DEFAULTS, SatelliteConfig, expand_layout
+    tables = expand_layout({**LAYOUT_DEFAULTS, "pattern": "thesis14", "tilt_deg": float(tilt_deg),
+                             "fov_deg": float(fov_deg)})
+    if height_mm is not None:
+        a = float(np.sqrt(BPW34_AREA_M2)) / MM
+        w = a + 2 * float(height_mm) * np.tan(np.radians(fov_deg))
+        for t in tables:
+            t["well"] = {"height_mm": float(height_mm), "opening_mm": [float(w), float(w)]}
+    name = name or f"tilt{tilt_deg:g}_fov{fov_deg:g}_h{'eq415' if height_mm is None else f'{height_mm:g}'}"
+    return SatelliteConfig.from_dict({"name": name, "diode": tables})
+
+
+def response_coverage(config, *, dead=(0,), level=0.01, nside=16):
+    """Return the coverage fractions {'red', 'yellow', 'green'} counting, per HEALPix direction, the live
+    diodes whose real response (the well's overlap x the body box's visibility, black walls) reaches
+    ``level`` of normal incidence, instead of the nominal FOV cone of
+    :func:`simcore.coverage.coverage_fractions` (thesis sec. 3.2.4)."""
+    from simcore.analytic import BodyBox
+    from simcore.coverage import CLASSES, coverage_classes, pixel_directions
+    from simcore.occlusion import direct_visibility
+    cfg = _as_config(config)
+    d = pixel_directions(nside)
+    resp = np.stack([a.response(d @ f.T) for a, f in zip(cfg.apertures, cfg.frames)], axis=1)
+    box = BodyBox.from_config(cfg)
+    vis = direct_visibility(cfg.apertures, cfg.frames, box.positions_m, box.panel_normals, d, box.half_m)
+    resp = np.where(resp > 0, resp * np.nan_to_num(vis, nan=0.0), 0.0)      # NaN: the well itself is dark
+    live = ~np.asarray(cfg.dead, bool)
+    live[list(dead)] = False
+    cls = coverage_classes(np.sum(resp[:, live] >= level, axis=1))
+    return {name: float(np.mean(cls == k)) for k, name in enumerate(CLASSES)}
+
+
+SWEEP_COLUMNS = ("height_mm", "tilt_deg", "fov_deg", "opening_mm", "cutoff_deg", "cutoff_diag_deg",
+                 "mount_height_mm", "green", "yellow", "red", "green_response", "albedo_fraction")
+
+
+def sweep_apertures(heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.0, 30.0), fovs_deg=(70.0, 75.0), *,
+                    dead=(0,), step_s=20.0, geometry=None, diode="BPW34FS", estimators=("wls", "albedo_sun"),
+                    progress=None):
+    """Return the sweep table (list of dict rows, one per height x tilt x FOV) of the 14-diode layout
+    (:func:`sweep_config`; a height None means the eq. 4.15 design):
+
+    ``green``/``yellow``/``red``: coverage fractions (:func:`simcore.coverage.coverage_fractions`, ``dead``:
+    nominal FOV cones, the same for every height); ``green_response``: the green fraction counting the diodes
+    whose real response reaches 1 % (:func:`response_coverage`: it sees the height through the cut-off);
+    ``albedo_fraction``: albedo / (direct + albedo) summed over the live diodes and the sunlit epochs of one
+    orbit (analytic model with the body box, :func:`simcore.analytic.diode_irradiance`);
+    ``<estimator>_mean_deg`` / ``_p95_deg``: sunlit angle errors of the estimators over that orbit
+    (sensor chain :func:`simcore.evaluate.measure`, no noise). Mounts that do not fit give
+    ``feasible`` False, the reason, and NaN metrics.
+    """
+    from scenes.config import ConfigError
+    from simcore.analytic import BodyBox, diode_irradiance
+    from simcore.coverage import coverage_fractions
+    from simcore.evaluate import error_table, errors, measure, run_estimators
+    from simcore.sensor import DIODES
+    g = one_orbit_geometry(step_s=step_s) if geometry is None else geometry
+    sunlit = g.illumination >= 1.0
+    rows = []
+    combos = [(h, t, f) for h in heights_mm for t in tilts_deg for f in fovs_deg]
+    for i, (h, tilt, fov) in enumerate(combos):
+        row = {"height_mm": float("nan") if h is None else float(h), "tilt_deg": float(tilt), "fov_deg": float(fov)}
+        try:
+            cfg = sweep_config(tilt, fov, h)
+        except ConfigError as exc:
+            for c in SWEEP_COLUMNS[3:]:
+                row[c] = float("nan")
+            row.update({"feasible": False, "reason": str(exc).split(";")[0]})
+            for e in estimators:
+                row[f"{e}_mean_deg"] = row[f"{e}_p95_deg"] = float("nan")
+            rows.append(row)
+            if progress is not None:
+                progress(i + 1, len(combos))
+            continue
+        ap = cfg.apertures[0]
+        a = ap.diode_x_m
+        row.update({"height_mm": ap.height_m / MM, "opening_mm": ap.opening_x_m / MM,
+                    "cutoff_deg": float(np.degrees(np.arctan2((ap.opening_x_m + a) / 2, ap.height_m))),
+                    "cutoff_diag_deg": float(np.degrees(np.arctan(np.sqrt(2) * (ap.opening_x_m + a)
+                                                                  / 2 / ap.height_m))),
+                    "mount_height_mm": float(cfg.mount_heights_m().max() / MM), "feasible": True, "reason": ""})
+        row.update(coverage_fractions(cfg, dead=dead))
+        row["green_response"] = response_coverage(cfg, dead=dead)["green"]
+        irr = diode_irradiance(g.r_sat_ecef_m, g.r_sun_ecef_m, g.R_ecef_from_body, cfg.frames, list(cfg.apertures),
+                               body=BodyBox.from_config(cfg))
+        live = np.ones(cfg.n_diodes, bool)
+        live[list(dead)] = False
+        alb = irr.albedo_w_m2[sunlit][:, live].sum()
+        row["albedo_fraction"] = float(alb / irr.total_w_m2[sunlit][:, live].sum())
+        e_p = measure(irr.total_w_m2, diode=diode, dead=dead)
+        est = run_estimators(e_p, cfg.normals, float(fov), e_s0=DIODES[diode].e_s0_w_m2, live=live,
+                             which=estimators)
+        table = error_table(errors(est, g.sun_dir_body), sunlit)
+        for t in table:
+            row[f"{t['estimator']}_mean_deg"] = t["mean_deg"]
+            row[f"{t['estimator']}_p95_deg"] = t["p95_deg"]
+        rows.append(row)
+        if progress is not None:
+            progress(i + 1, len(combos))
+    return rows
+
+
+def plot_sweep(rows, path=None, estimators=("wls", "albedo_sun")):
+    """Return a Figure of a sweep table: green fraction, albedo fraction and the estimators' mean sunlit
+    errors against the well height, one line per (tilt, FOV); ``path`` writes it."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from simcore.plots import save_figure
+    metrics = [("green", "coverage: green fraction (FOV cones) [-]"),
+               ("green_response", "coverage: green fraction (response >= 1 %) [-]"),
+               ("albedo_fraction", "albedo / total, sunlit [-]")]
+    metrics += [(f"{e}_mean_deg", f"{e}: mean sunlit error [deg]") for e in estimators]
+    metrics += [(f"{e}_p95_deg", f"{e}: p95 sunlit error [deg]") for e in estimators]
+    fig = Figure(figsize=(4.2 * ((len(metrics) + 1) // 2), 7.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, (len(metrics) + 1) // 2, squeeze=False).T.ravel()
+    keys = sorted({(r["tilt_deg"], r["fov_deg"]) for r in rows})
+    colours = ["#1f5fa8", "#e08a00", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#17becf", "#7f7f7f"]
+    for ax, (col, label) in zip(axes, metrics):
+        for j, (tilt, fov) in enumerate(keys):
+            sel = sorted((r for r in rows if (r["tilt_deg"], r["fov_deg"]) == (tilt, fov) and r.get("feasible")),
+                         key=lambda r: r["height_mm"])
+            if not sel:
+                continue
+            ax.plot([r["height_mm"] for r in sel], [r.get(col, np.nan) for r in sel], marker="o",
+                    color=colours[j % len(colours)], ls="-" if fov == keys[0][1] else "--",
+                    label=f"tilt {tilt:g}, FOV {fov:g}")
+        ax.set_xlabel("well height [mm]")
+        ax.set_ylabel(label)
+        ax.grid(True, lw=0.4, alpha=0.5)
+    for ax in axes[len(metrics):]:
+        ax.set_visible(False)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 6), fontsize=9, frameon=False)
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+def format_table(rows, columns=None, floatfmt="{:.3g}"):
+    """Return a Markdown table of dict rows (``columns``: the keys to show, default all of the first row)."""
+    if not rows:
+        return ""
+    cols = list(columns or rows[0].keys())
+
+    def fmt(v):
+        if isinstance(v, (float, np.floating)):
+            return floatfmt.format(v)
+        return str(v)
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines += ["| " + " | ".join(fmt(r.get(c, "")) for c in cols) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def run_aperture_sweep(out_dir, heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.0, 30.0), fovs_deg=(70.0, 75.0),
+                       *, step_s=20.0, dead=(0,), log=print):
+    """Run :func:`sweep_apertures` and write ``sweep.csv``, ``sweep.md`` and ``sweep.png`` into ``out_dir``;
+    return the rows. The command-line entry point (``sunsim aperture-sweep``)."""
+    import csv
+    from pathlib import Path
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = sweep_apertures(heights_mm, tilts_deg, fovs_deg, step_s=step_s, dead=dead,
+                           progress=lambda i, n: log(f"aperture sweep: {i}/{n}"))
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    with open(out / "sweep.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys)
+        w.writeheader()
+        w.writerows(rows)
+    (out / "sweep.md").write_text(format_table(rows, [k for k in keys if k != "reason"]) + "\n")
+    plot_sweep(rows, out / "sweep.png")
+    log(f"wrote {out / 'sweep.csv'}, {out / 'sweep.md'}, {out / 'sweep.png'}")
+    return rows
+
+
+# ----------------------------------------------------------------------------- wall reflectance series
+
+def reflectance_series(aperture, rhos=(0.0, 0.05, 0.2, 0.5, 0.9), *, theta_deg=None, phi_deg=0.0, rays=20_000,
+                       seed=0, levels=DEFAULT_LEVELS):
+    """Return {'theta_deg', 'rho', 'response' (R, M), 'response_se' (R, M), 'angles' rows}: the response
+    cut along ``phi_deg`` (overlap + traced reflections, ``WellTrace.response_cv``) with Lambertian walls
+    of each reflectance in ``rhos`` (same seed: common random
+    numbers, so the curves differ by the walls alone; no Russian roulette, so each path's contribution is
+    non-decreasing in rho)."""
+    from simcore.walls import WallMaterial, trace_well
+    th = np.arange(0.0, 90.0, 2.0) if theta_deg is None else np.asarray(theta_deg, dtype=float)
+    d = cut_directions(th, phi_deg)
+    resp, se, angles = [], [], []
+    for rho in rhos:
+        tr = trace_well(aperture, d, WallMaterial.diffuse(rho), rays=rays, seed=seed, rr_depth=10_000)
+        resp.append(tr.response_cv)
+        se.append(tr.response_cv_se)
+        for lev, ang in response_angles(th, tr.response_cv, levels).items():
+            angles.append({"rho": float(rho), "level": lev, "angle_deg": ang})
+    return {"theta_deg": th, "phi_deg": float(phi_deg), "rho": np.asarray(rhos, float), "response": np.array(resp),
+            "response_se": np.array(se), "angles": angles, "overlap": aperture.response(d)}
+
+
+def plot_reflectance_series(series, path=None):
+    """Return a Figure: response cuts for each wall reflectance (left) and their excess over black walls
+    with +-2 SE bands (right, log scale); ``path`` writes it."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from simcore.plots import save_figure
+    th = series["theta_deg"]
+    fig = Figure(figsize=(11.5, 4.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax1, ax2 = fig.subplots(1, 2)
+    ax1.plot(th, series["overlap"], color="k", lw=2.5, alpha=0.35, label="analytic overlap (black)")
+    for rho, r, se in zip(series["rho"], series["response"], series["response_se"]):
+        line, = ax1.plot(th, r, lw=1.3, label=f"rho {rho:g}")
+        if rho > 0:
+            ex = r - series["overlap"]
+            ax2.plot(th, np.where(ex > 0, ex, np.nan), color=line.get_color(), lw=1.3, label=f"rho {rho:g}")
+            ax2.fill_between(th, np.maximum(ex - 2 * se, 1e-6), ex + 2 * se, color=line.get_color(), alpha=0.2)
+    ax1.set_ylabel("response relative to normal incidence [-]")
+    ax2.set_ylabel("response - black-wall overlap [-]")
+    ax2.set_yscale("log")
+    ax2.set_ylim(1e-5, 1)
+    for ax in (ax1, ax2):
+        ax.set_xlabel(f"incidence angle [deg] (azimuth {series['phi_deg']:g} deg)")
+        ax.grid(True, lw=0.4, alpha=0.5)
+        ax.axvline(EQ415_CUTOFF_DEG, color="0.4", ls=":", lw=1)
+        ax.legend(fontsize=8)
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+# ----------------------------------------------------------------------------- command line
+
+def _none_or_float(text):
+    return None if text.lower() in ("none", "eq415", "design") else float(text)
+
+
+def build_parser(parser=None):
+    """Return (or fill) an argparse parser for the aperture sweep: --heights (mm; 'eq415' = the eq. 4.15
+    design), --tilts (deg), --fovs (deg), --step (s), --dead, -o/--out."""
+    import argparse
+    p = parser or argparse.ArgumentParser(
+        prog="python -m simcore.aperture_study",
+        description="Aperture sweep: well height x tilt x FOV -> coverage, albedo fraction, estimator errors "
+                    "over one orbit (writes sweep.csv, sweep.md, sweep.png)")
+    p.add_argument("--heights", nargs="+", type=_none_or_float, default=[0.3, 0.5, 1.0],
+                   help="well heights in mm ('eq415': the eq. 4.15 design height for each FOV)")
+    p.add_argument("--tilts", nargs="+", type=float, default=[20.0, 25.0, 30.0], help="ramp tilts in deg")
+    p.add_argument("--fovs", nargs="+", type=float, default=[70.0, 75.0], help="FOVs in deg (full response up to it)")
+    p.add_argument("--step", type=float, default=20.0, help="orbit sampling step in s (one orbit)")
+    p.add_argument("--dead", nargs="*", type=int, default=[0], help="dead diode indices (thesis: 0)")
+    p.add_argument("-o", "--out", required=True, help="output folder")
+    return p
+
+
+def main(argv=None):
+    """Run the aperture sweep from the command line; return 0."""
+    args = build_parser().parse_args(argv)
+    run_aperture_sweep(args.out, args.heights, args.tilts, args.fovs, step_s=args.step, dead=tuple(args.dead))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
