@@ -304,6 +304,24 @@ def test_uniform_radiance_field_gives_pi_l():
     assert se / pi_l < 0.004
 
 
+
+def _earth_disc_quadrature(c, sun, rho, response, n):
+    """Return int L(d) response(d) dOmega over the Earth's disc seen from the origin (midpoint rule,
+    n x n cells equal in solid angle): the Earth a Lambertian sphere of radius R centred at ``c`` with
+    uniform reflectance ``rho``, lit by the Sun along ``sun`` (L = rho E cos(i) / pi)."""
+    H = np.linalg.norm(c)
+    cmax = np.sqrt(1 - (R / H) ** 2)
+    u = 1 - (np.arange(n) + 0.5) / n * (1 - cmax)           # cos of the angle from the Earth's centre
+    phi = (np.arange(n) + 0.5) / n * 2 * np.pi
+    U, P = np.meshgrid(u, phi, indexing="ij")
+    S = np.sqrt(1 - U * U)
+    d = np.stack([S * np.cos(P), S * np.sin(P), -U], axis=-1)   # c lies along -z
+    b = d @ c
+    perp = c - b[..., None] * d
+    xe = -perp - np.sqrt(np.clip(R * R - (perp * perp).sum(-1), 0, None))[..., None] * d
+    L = rho * E_SUN_W_M2 * np.clip(xe @ sun / R, 0, None) / np.pi
+    return (L * response(d)).sum() * (1 - cmax) / n * 2 * np.pi / n
+
 def test_albedo_tilted_diode_matches_direction_quadrature():
     # Oracle: a midpoint quadrature of int L cos(theta_d) dOmega over the Earth's disc on a
     # fine (cos theta, phi) grid about nadir, for a diode tilted 60 deg from nadir and the Sun
@@ -313,18 +331,7 @@ def test_albedo_tilted_diode_matches_direction_quadrature():
     nrm = np.array([np.sin(np.radians(120)), 0.0, np.cos(np.radians(120))])
     sun = np.array([np.sin(np.radians(-50)), 0.0, np.cos(np.radians(-50))])
     c = np.array([0.0, 0.0, -H])
-    cmax = np.sqrt(1 - (R / H) ** 2)
-    nu, nphi = 1500, 1500
-    u = 1 - (np.arange(nu) + 0.5) / nu * (1 - cmax)         # cos of the angle from nadir
-    phi = (np.arange(nphi) + 0.5) / nphi * 2 * np.pi
-    U, P = np.meshgrid(u, phi, indexing="ij")
-    S = np.sqrt(1 - U * U)
-    d = np.stack([S * np.cos(P), S * np.sin(P), -U], axis=-1)
-    b = d @ c
-    perp = c - b[..., None] * d
-    xe = -perp - np.sqrt(np.clip(R * R - (perp * perp).sum(-1), 0, None))[..., None] * d
-    L = rho * E_SUN_W_M2 * np.clip(xe @ sun / R, 0, None) / np.pi
-    expected = (L * np.clip(d @ nrm, 0, None)).sum() * (1 - cmax) / nu * 2 * np.pi / nphi
+    expected = _earth_disc_quadrature(c, sun, rho, lambda d: np.clip(d @ nrm, 0, None), 1500)
     rend = Renderer(DiodeSet(np.zeros((1, 3)), diode_frame(nrm)[None], [A, A]),
                     reflectivity=np.full((180, 288), rho))
     n = 6
@@ -347,18 +354,7 @@ def test_albedo_through_a_well_matches_quadrature_with_the_analytic_aperture(hin
     frame = diode_frame(nrm)
     sun = np.array([np.sin(np.radians(40)), 0.0, np.cos(np.radians(40))])
     c = np.array([0.0, 0.0, -H])
-    cmax = np.sqrt(1 - (R / H) ** 2)
-    nu, nphi = 1200, 1200
-    u = 1 - (np.arange(nu) + 0.5) / nu * (1 - cmax)
-    phi = (np.arange(nphi) + 0.5) / nphi * 2 * np.pi
-    U, P = np.meshgrid(u, phi, indexing="ij")
-    S = np.sqrt(1 - U * U)
-    d = np.stack([S * np.cos(P), S * np.sin(P), -U], axis=-1)
-    b = d @ c
-    perp = c - b[..., None] * d
-    xe = -perp - np.sqrt(np.clip(R * R - (perp * perp).sum(-1), 0, None))[..., None] * d
-    L = rho * E_SUN_W_M2 * np.clip(xe @ sun / R, 0, None) / np.pi
-    expected = (L * ap.response(d @ frame.T)).sum() * (1 - cmax) / nu * 2 * np.pi / nphi
+    expected = _earth_disc_quadrature(c, sun, rho, lambda d: ap.response(d @ frame.T), 1200)
     centre = np.array([0.0, 0.0, -0.12])
     ds = DiodeSet(centre[None], frame[None], [A, A], apertures=[ap] if hint else None)
     rend = Renderer(ds, _well_mesh(frame, centre, ap), reflectivity=np.full((180, 288), rho))
