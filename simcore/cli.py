@@ -185,7 +185,9 @@ def cmd_view(args):
 
 def cmd_validate(args):
     """The rendered-vs-analytic report of a run file; exit status 1 outside tolerance."""
-    from simcore.run import check_run, open_run
+    from simcore.run import check_run, open_run, recompute_analytic
+    if args.recompute_analytic:
+        recompute_analytic(args.run, log=None if args.json else (lambda m: print(m, file=sys.stderr)))
     ds = open_run(args.run)
     flags, report = check_run(ds)
     if args.json:
@@ -310,6 +312,8 @@ def build_parser():
 
     va = sub.add_parser("validate", help="rendered-vs-analytic report of a run file (exit 1 outside tolerance)")
     va.add_argument("run", metavar="RUN.nc")
+    va.add_argument("--recompute-analytic", action="store_true",
+                    help="recompute the analytic model with this sunsim first (keeps the rendered numbers)")
     va.add_argument("--json", action="store_true")
     va.set_defaults(func=cmd_validate)
 

@@ -323,3 +323,45 @@ def check_run(ds):
     considered = np.broadcast_to(ds["valid"].values.astype(bool)[:, None], (n, k))
     return _check.compare(irr[..., 0], se[..., 0], ref[..., 0], irr[..., 1], se[..., 1], ref[..., 1],
                           ds["albedo_discretisation_bound"].values, scale * cos_inc, considered=considered)
+
+
+def options_of(ds, path):
+    """Return the RunOptions a run file was made with (from its 'options' attribute)."""
+    spec = json.loads(ds.attrs["options"])
+    names = {f.name for f in dataclasses.fields(RunOptions)}
+    kw = {k: v for k, v in spec.items() if k in names}
+    for k in ("dead", "spin_axis"):
+        if k in kw:
+            kw[k] = tuple(kw[k])
+    return RunOptions(**kw, output=path)
+
+
+def recompute_analytic(path, *, chunk=4096, log=None):
+    """Recompute a run file's analytic model and check with this version of sunsim (the rendered numbers
+    are kept); rewrite the file atomically and return the new check report."""
+    ds = open_run(path)
+    study = Study(options_of(ds, path))
+    n = len(study.epochs)
+    if n != ds.sizes["time"]:
+        raise ValueError(f"{path}: its options give {n} epochs but it holds {ds.sizes['time']}; "
+                         "it was not made by this command's options")
+    native = np.zeros(ds["analytic"].shape)
+    fine = np.zeros(ds["analytic"].shape[:2])
+    for s, e in chunk_ranges(n, chunk):
+        a = study.analytic(slice(s, e), study.map)
+        native[s:e, :, 0], native[s:e, :, 1] = a.direct_w_m2, a.albedo_w_m2
+        fine[s:e] = study.analytic(slice(s, e), study.map_refined, direct=False).albedo_w_m2
+        if log:
+            log(f"analytic {e}/{n}")
+    data = {"rendered": ds["irradiance"].values, "rendered_se": ds["irradiance_se"].values,
+            "samples": ds["samples"].values, "analytic": native, "analytic_albedo_refined": fine,
+            "valid": ds["valid"].values.astype(bool)}
+    new, report = build_dataset(study, data, ds.attrs.get("variant", ""))
+    new.attrs["software"] = ds.attrs["software"]          # the rendering's versions
+    new.attrs["analytic_recomputed_with"] = json.dumps(_versions(), sort_keys=True)
+
+    def write(tmp):
+        new.to_netcdf(tmp, engine="h5netcdf")
+    ds.close()
+    atomic_write(path, write)
+    return report
