@@ -382,6 +382,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         miss2 = np.einsum("nj,nj->n", earth_body_m, earth_body_m)[None] - along ** 2
         weights = ~((along > 0) & (miss2 < radius_m ** 2))
         weights = np.where(weights.any(axis=0), weights, True).astype(float)   # umbra by points: plain mean
+    partial_earth = (weights != weights[:1]).any(axis=0) if len(dirs) > 1 else np.zeros(weights.shape[1], bool)
     weights = weights / weights.sum(axis=0)
     resp = np.stack([[r.response(d @ f.T) for d in dirs] for r, f in zip(resps, frames)], axis=2)  # (M, N, K)
     kink = np.zeros(resp.shape[1:], bool)
@@ -393,6 +394,8 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         for k, (r, f) in enumerate(zip(resps, frames)):
             pr = np.stack([r.response(d @ f.T) for d in probe])
             kink[:, k] = (pr == 0).any(axis=0) & (pr > 0).any(axis=0)
+            # The Earth's limb across the disc: its weights are then a coarse 37-point picture of the cut.
+            kink[:, k] |= partial_earth & (pr > 0).any(axis=0)
             if isinstance(r, _resp.WellAperture) and r.height_m > 0:
                 lit = np.stack([r.lit_fraction(d @ f.T) for d in probe])
                 kink[:, k] |= (lit == 1).any(axis=0) & (lit < 1).any(axis=0)

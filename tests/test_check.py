@@ -1,5 +1,6 @@
 """The analytic check's verdicts, on synthetic numbers with known statistics."""
 import numpy as np
+import pytest
 
 from simcore.check import compare
 
@@ -36,3 +37,11 @@ def test_any_outlier_where_the_half_percent_band_rules_fails(rng):
     args[0][5, 2] = args[2][5, 2] * 1.006
     flags, rep = compare(*args)
     assert not rep["direct_pass"] and flags["direct"][5, 2]
+
+
+def test_poisson_tail_against_closed_forms():
+    from simcore.check import poisson_tail
+    # P(N >= 1) = 1 - exp(-lam); P(N >= 2) = 1 - exp(-lam) (1 + lam)   (Poisson pmf)
+    assert poisson_tail(1, 0.3) == pytest.approx(1 - np.exp(-0.3))
+    assert poisson_tail(2, 2.0) == pytest.approx(1 - np.exp(-2.0) * 3.0)
+    assert poisson_tail(0, 5.0) == 1.0
