@@ -73,7 +73,8 @@ def summarise(errs, sunlit, t_s, period_s, window=181):
         a = np.where(sunlit, e["angle_deg"], np.nan)
         row = {"n_sunlit": int(sunlit.sum()), "n_invalid": int((sunlit & ~np.isfinite(a)).sum()),
                "mean_deg": stat(np.mean, a), "p95_deg": stat(lambda x: np.percentile(x, 95), a),
-               "max_deg": stat(np.max, a)}
+               "max_deg": stat(np.max, a),
+               "share_below_5_deg": stat(lambda x: np.mean(x < 5.0), a)}
         for comp in ("zenith", "azimuth"):
             hm, _ = hanning_mean_std(np.where(sunlit, np.abs(e[f"{comp}_deg"]), np.nan), window=window)
             hm = np.where(sunlit, hm, np.nan)
