@@ -41,7 +41,7 @@ def candidates():
     for d in ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu",
               "/usr/lib64", "/usr/lib", "/usr/local/lib"):
         system += glob.glob(os.path.join(d, "libLLVM*.so*"))
-        system += glob.glob(f"/usr/lib/llvm-*/lib/libLLVM*.so*")
+        system += glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*")
     system = [p for p in dict.fromkeys(system) if _version(p) >= MIN_VERSION]
     found += sorted(system, key=_version, reverse=True)
     return found

@@ -74,7 +74,7 @@ import math
 
 import numpy as np
 
-from simcore.constants import AU_M, E_SUN_TOOLBOX_W_M2, E_SUN_W_M2, R_EARTH_MEAN_M
+from simcore.constants import AU_M, E_SUN_TOOLBOX_W_M2, E_SUN_W_M2
 from simcore.maps import ReflectivityMap, as_map
 
 TOOLBOX_EARTH_RADIUS_M = 6371.01e3   # albedo.m, earthfov.m, cellarea.m: CONST.EMR

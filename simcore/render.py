@@ -335,7 +335,7 @@ class Renderer:
 
     def _rand(self, key, j, k):
         """Return 2k uniform [0, 1) floats per lane from TEA(key, j*k + i)."""
-        dr, mi = self._dr, self._mi
+        mi = self._mi
         out = []
         for i in range(k):
             a, b = mi.sample_tea_32(key, j * k + i)
@@ -612,7 +612,6 @@ class Renderer:
         corner = np.maximum(np.maximum(fc[:, :-1, :-1], fc[:, 1:, :-1]), np.maximum(fc[:, :-1, 1:], fc[:, 1:, 1:]))
         wbin = corner.reshape(len(f), -1)
         tot = wbin.sum(axis=1, keepdims=True)
-        B = _N_T * _N_P
         omega = np.repeat(np.diff(tedge, axis=1) / _N_P, _N_P, axis=1)   # bin solid angle / cap's
         pmf = np.where(tot > 0, (1 - _DEFENSIVE) * wbin / np.where(tot > 0, tot, 1.0) + _DEFENSIVE * omega, omega)
         cdf = np.cumsum(pmf, axis=1)

@@ -17,7 +17,7 @@ import os
 
 import numpy as np
 
-from simcore.run import RunOptions, execute, open_run
+from simcore.run import execute, open_run
 from simcore.runstore import atomic_write, spec_digest
 
 
