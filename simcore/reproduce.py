@@ -12,6 +12,7 @@ The span is the whole day (``day``) or the thesis' two orbits 1.8e4-2.8e4 s
 import dataclasses
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 
@@ -236,6 +237,6 @@ def write_page(results, page_folder):
             lines.append(f"![{f}]({f})")
     discussion = os.path.join(page_folder, "discussion.md")   # hand-written, kept across regenerations
     if os.path.exists(discussion):
-        lines += ["", open(discussion).read()]
+        lines += ["", Path(discussion).read_text()]
     with open(os.path.join(page_folder, "README.md"), "w") as f:
         f.write("\n".join(lines) + "\n")

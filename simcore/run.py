@@ -12,6 +12,7 @@ import dataclasses
 import hashlib
 import json
 import os
+from pathlib import Path
 import platform
 import sys
 from dataclasses import dataclass
@@ -228,7 +229,7 @@ def build_dataset(study, data, variant):
         coords=coords,
     )
     tle = f"{study.orbit.line1}\n{study.orbit.line2}"
-    cfg_text = open(cfg.source).read() if cfg.source and os.path.isfile(cfg.source) else ""
+    cfg_text = Path(cfg.source).read_text() if cfg.source and os.path.isfile(cfg.source) else ""
     ds.attrs.update({
         "title": "sunsim diode irradiance run",
         "conventions": "time leads; frames named in each variable; SI units",
@@ -302,8 +303,7 @@ def open_run(path):
         raise ValueError(f"{path} is a folder, not a run file (.nc); a folder ending in .partial is an "
                          "unfinished run: finish it by running the same 'sunsim run' command again")
     try:
-        ds = xr.open_dataset(path, engine="h5netcdf")
-        ds.load()
+        ds = xr.load_dataset(path, engine="h5netcdf")      # in memory, file closed
     except Exception as exc:  # h5py/netCDF raise many types for a corrupt file
         raise ValueError(f"{path} is not a readable netCDF run file ({type(exc).__name__}: {exc}); "
                          "was it written by 'sunsim run'?") from None
