@@ -70,22 +70,30 @@ def error_table(errs, sunlit, orbit_index=None):
     return rows
 
 
-def evaluate_run(ds, *, diode="BPW34FS", noise=False, seed=0, which=None):
-    """Return (errs, table, extras) for a run Dataset (:mod:`simcore.run`): rendered direct + albedo
-    through the sensor chain into the thesis' estimators, errors against the true Sun vector."""
+def run_errors(ds, *, diode="BPW34FS", noise=False, seed=0, which=None, smart_select=False):
+    """Return (errs, sunlit, extras) for a run Dataset (:mod:`simcore.run`): rendered direct + albedo
+    through the sensor chain into the thesis' estimators (plus ``smart_select`` for opposite diode pairs),
+    errors against the true Sun vector (:func:`errors`); ``sunlit`` (N,) is the full-Sun mask."""
     from simcore.attitude import quat_to_matrix
     irr = ds["irradiance"].sum("component").values
-    dead = np.flatnonzero(ds["dead"].values.astype(bool))
-    normals = ds["normal_body"].values
-    fov = ds["fov_deg"].values if "fov_deg" in ds else np.full(normals.shape[0], 90.0)
-    e_s0 = DIODES[diode].e_s0_w_m2
-    e_p = measure(irr, diode=diode, dead=dead, noise=noise, seed=seed)
     live = ~ds["dead"].values.astype(bool)
-    est = run_estimators(e_p, normals, float(np.min(fov)), e_s0=e_s0, live=live, which=which)
+    normals = ds["normal_body"].values
+    fov = float(np.min(ds["fov_deg"].values)) if "fov_deg" in ds else 90.0
+    e_s0 = DIODES[diode].e_s0_w_m2
+    e_p = measure(irr, diode=diode, dead=np.flatnonzero(~live), noise=noise, seed=seed)
+    est = run_estimators(e_p, normals, fov, e_s0=e_s0, live=live, which=which)
+    if smart_select:
+        est["smart_select"] = _est.smart_select_estimate(e_p, normals, fov_deg=fov, e_s0=e_s0, live=live)
     R = quat_to_matrix(ds["q_gcrs_from_body"].values)
-    errs = errors(est, ds["sun_dir_body"].values, R)
     sunlit = ds["illumination"].values >= 1.0
+    return errors(est, ds["sun_dir_body"].values, R), sunlit, {"e_p": e_p, "estimates": est}
+
+
+def evaluate_run(ds, *, diode="BPW34FS", noise=False, seed=0, which=None):
+    """Return (errs, table, extras) for a run Dataset: :func:`run_errors` and its :func:`error_table`
+    (sunlit, all orbits together and per orbit when the run spans more than one)."""
+    errs, sunlit, extras = run_errors(ds, diode=diode, noise=noise, seed=seed, which=which)
     t = ds["t_s"].values
     period = float(ds.attrs.get("period_s", 0) or 0)
     orbit = (t // period).astype(int) if period > 0 and t[-1] >= period else None
-    return errs, error_table(errs, sunlit, orbit), {"e_p": e_p, "sunlit": sunlit, "estimates": est}
+    return errs, error_table(errs, sunlit, orbit), {**extras, "sunlit": sunlit}

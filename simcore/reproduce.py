@@ -17,15 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from estimators.metrics import hanning_mean_std
-from simcore.evaluate import errors, measure, run_estimators
+from simcore.evaluate import run_errors
 from simcore.run import RunOptions, Study, execute, open_run
-from simcore.sensor import DIODES
 
 CONFIGS = ("tilt0_fov90", "tilt20_fov70", "tilt20_fov75", "tilt25_fov70", "tilt25_fov75", "tilt30_fov70",
            "tilt30_fov75")
 SPANS = {"day": ("2016-07-02T00:00:00Z", 86400.0), "orbits": ("2016-07-02T05:00:00Z", 10000.0),
          "short": ("2016-07-02T00:45:00Z", 600.0)}   # "short": a demonstration that runs in a minute
-E_S0 = DIODES["BPW34FS"].e_s0_w_m2
 
 
 def run_options(config, folder, *, span="day", spin_rate_deg_s=1.9, reflectivity="toms2005", **kw):
@@ -43,22 +41,6 @@ def ensure_run(opts, log=print):
         log(f"rendering {os.path.basename(opts.output)} ...")
         execute(opts, log=log)
     return open_run(opts.output)
-
-
-def study_errors(ds, *, noise=False, seed=0, extra=True):
-    """Return {estimator: dict(angle_deg, zenith_deg, azimuth_deg, valid)} and the sunlit mask for a run."""
-    from simcore.attitude import quat_to_matrix
-    live = ~ds["dead"].values.astype(bool)
-    irr = ds["irradiance"].sum("component").values
-    e_p = measure(irr, dead=np.flatnonzero(~live), noise=noise, seed=seed)
-    normals = ds["normal_body"].values
-    fov = float(np.min(ds["fov_deg"].values))
-    est = run_estimators(e_p, normals, fov, e_s0=E_S0, live=live)
-    if extra:
-        from estimators.advanced import smart_select_estimate
-        est["smart_select"] = smart_select_estimate(e_p, normals, fov_deg=fov, e_s0=E_S0, live=live)
-    R = quat_to_matrix(ds["q_gcrs_from_body"].values)
-    return errors(est, ds["sun_dir_body"].values, R), ds["illumination"].values >= 1.0
 
 
 def summarise(errs, sunlit, t_s, period_s, window=181):
@@ -119,12 +101,12 @@ def reproduce(folder, *, span="day", page_folder=None, log=print, render=True, s
             log(f"skipping {cfg}: {opts.output} missing")
             continue
         ds = ensure_run(opts, log=log)
-        errs, sunlit = study_errors(ds)
+        errs, sunlit, _ = run_errors(ds, smart_select=True)
         t = ds["t_s"].values + (ds["time"].values[0] - np.datetime64("2016-07-02T00:00:00")) / np.timedelta64(1, "s")
         res = summarise(errs, sunlit, t, float(ds.attrs["period_s"]))
         res["check"] = json.loads(ds.attrs["check"])
         if noise:
-            errs_n, _ = study_errors(ds, noise=True, seed=1, extra=False)
+            errs_n, _, _ = run_errors(ds, noise=True, seed=1)
             res["with_noise"] = {k: v["mean_deg"] for k, v in summarise(errs_n, sunlit, t, float(ds.attrs["period_s"])).items()}
         results["configs"][cfg] = res
         for name in errs:
@@ -146,7 +128,7 @@ def reproduce(folder, *, span="day", page_folder=None, log=print, render=True, s
             if not render and not os.path.exists(opts.output):
                 continue
             ds = ensure_run(opts, log=log)
-            errs, sunlit = study_errors(ds)
+            errs, sunlit, _ = run_errors(ds, smart_select=True)
             t = ds["t_s"].values
             results["spin"]["configs"][cfg] = {k: {kk: v[kk] for kk in ("mean_deg", "p95_deg", "max_deg")}
                                                for k, v in summarise(errs, sunlit, t, float(ds.attrs["period_s"])).items()}
