@@ -14,13 +14,6 @@ class UserError(Exception):
     """A mistake in what the user asked for: printed as one line, exit status 2."""
 
 
-def _orbit(args):
-    from simcore.orbit import Orbit
-    if args.tle is None:
-        return Orbit.default()
-    return Orbit.from_file(args.tle, satellite=args.satellite)
-
-
 def _add_orbit_options(p):
     p.add_argument("--tle", metavar="FILE", help=DEFAULT_TLE_HELP)
     p.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
@@ -33,14 +26,11 @@ def _add_orbit_options(p):
 
 
 def _geometry(args):
-    from simcore import attitude
-    from simcore.epochs import Epochs
-    from simcore.study import compute_geometry, orbital_period_s
-    orbit = _orbit(args)
-    duration = orbital_period_s(orbit) if args.duration is None else args.duration
-    epochs = Epochs.range(args.start, duration, args.step)
-    att = attitude.tumble(epochs.seconds_since(epochs[0]), rate_deg_s=args.spin_rate)
-    return orbit, compute_geometry(orbit, epochs, att)
+    from simcore.run import RunOptions, study_geometry
+    orbit, _, geometry = study_geometry(RunOptions(tle=args.tle, satellite=args.satellite, start=args.start,
+                                                   duration_s=args.duration, step_s=args.step,
+                                                   spin_rate_deg_s=args.spin_rate))
+    return orbit, geometry
 
 
 def cmd_summary(args):

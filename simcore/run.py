@@ -84,28 +84,34 @@ def _refined(m, factor):
                                       name=f"{m.name} refined {factor}x{factor}")
 
 
+def study_geometry(opts):
+    """Return (orbit, attitude, geometry) of the orbit, time span and attitude that ``opts`` describe."""
+    from simcore.orbit import Orbit
+    if opts.step_s is None or not opts.step_s > 0:
+        raise ValueError(f"--step must be a positive number of seconds, got {opts.step_s}")
+    orbit = Orbit.default() if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
+    duration = orbital_period_s(orbit) if opts.duration_s is None else opts.duration_s
+    if not (np.isfinite(duration) and 0 < duration <= 400 * 86400):
+        raise ValueError(f"--duration must be between 0 and 400 days in seconds, got {duration}")
+    epochs = Epochs.range(opts.start, duration, opts.step_s)
+    t_s = epochs.seconds_since(epochs[0])
+    if opts.attitude_file:
+        attitude = _attitude.Attitude.from_file(opts.attitude_file).resample(t_s)
+    else:
+        attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
+    return orbit, attitude, compute_geometry(orbit, epochs, attitude)
+
+
 class Study:
     """A prepared run: configuration, geometry, scene and maps, ready to render chunks."""
 
     def __init__(self, opts):
         from scenes.config import SatelliteConfig
-        from simcore.orbit import Orbit
         self.opts = opts
-        if opts.step_s is None or not opts.step_s > 0:
-            raise ValueError(f"--step must be a positive number of seconds, got {opts.step_s}")
         self.config = SatelliteConfig.load(opts.config, dead=list(opts.dead),
                                            extra_flat_diodes=True if opts.extra_flat_diodes else None)
-        self.orbit = Orbit.default() if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
-        duration = orbital_period_s(self.orbit) if opts.duration_s is None else opts.duration_s
-        if not (np.isfinite(duration) and 0 < duration <= 400 * 86400):
-            raise ValueError(f"--duration must be between 0 and 400 days in seconds, got {duration}")
-        self.epochs = Epochs.range(opts.start, duration, opts.step_s)
-        t_s = self.epochs.seconds_since(self.epochs[0])
-        if opts.attitude_file:
-            self.attitude = _attitude.Attitude.from_file(opts.attitude_file).resample(t_s)
-        else:
-            self.attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
-        self.geometry = compute_geometry(self.orbit, self.epochs, self.attitude)
+        self.orbit, self.attitude, self.geometry = study_geometry(opts)
+        self.epochs = self.geometry.epochs
         self.map = named_map(opts.reflectivity)
         self.map_refined = _refined(self.map, CHECK_REFINE)
         self._renderer = None
