@@ -3,7 +3,7 @@
 86 400 epochs x 14 diodes, TOMS 2005 map, the well aperture of
 ``WellAperture.design(70)`` as every diode's response, cylindrical eclipse.
 Target (issue "analytic albedo", item 4): < 20 s on the 2-core machine for
-:func:`simcore.analytic.diode_irradiance` (the geometry -- SGP4, frames,
+:func:`simcore.radiometry.analytic.diode_irradiance` (the geometry -- SGP4, frames,
 Sun, tumble -- is timed separately, it is another module's benchmark).
 
 For the ratio the same physics is also evaluated the plain way: per epoch,
@@ -20,13 +20,12 @@ import time
 
 import numpy as np
 
-import simcore  # noqa: F401  (sets up Dr.Jit's libLLVM before anything imports drjit)
-from simcore.analytic import diode_irradiance
-from simcore.aperture import WellAperture, diode_frame
+from simcore.radiometry.analytic import diode_irradiance
+from simcore.shapes.aperture import WellAperture, diode_frame
 from simcore.constants import E_SUN_W_M2
-from simcore.epochs import Epochs
-from simcore.maps import ReflectivityMap
-from simcore.study import compute_geometry
+from simcore.environment.epochs import Epochs
+from simcore.environment.maps import ReflectivityMap
+from simcore.environment.geometry import compute_geometry
 
 TARGET_S = 20.0
 PLAIN_EPOCHS = 60

@@ -10,10 +10,9 @@ import time
 
 import numpy as np
 
-import simcore  # noqa: F401  (libLLVM before mitsuba)
-from simcore import aperture_study as A
-from simcore.aperture import WellAperture
-from simcore.walls import WallMaterial, trace_well
+from simcore.studies import aperture as A
+from simcore.shapes.aperture import WellAperture
+from simcore.render.walls import WallMaterial, trace_well
 
 
 def main():
@@ -21,7 +20,7 @@ def main():
     p.add_argument("--rays", type=int, default=200_000, help="paths per direction for the wall tracer")
     p.add_argument("--variant", default=None, help="Mitsuba variant for the wall tracer (default: GPU if any)")
     args = p.parse_args()
-    from simcore.render import choose_variant
+    from simcore.render.irradiance import choose_variant
     args.variant = choose_variant(args.variant)
     ap = WellAperture.design(75.0)
     d = A.cut_directions(np.arange(0.0, 90.0, 5.0), 0.0)

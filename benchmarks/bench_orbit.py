@@ -8,11 +8,10 @@ import time
 
 import numpy as np
 
-import simcore  # noqa: F401  (sets up Dr.Jit's libLLVM before anything imports drjit)
-from simcore import eclipse, frames, sun
-from simcore.epochs import Epochs
-from simcore.orbit import Orbit
-from simcore.study import compute_geometry
+from simcore.environment import eclipse, frames, sun
+from simcore.environment.epochs import Epochs
+from simcore.environment.orbit import Orbit
+from simcore.environment.geometry import compute_geometry
 
 TARGET_S = 2.0
 

@@ -1,8 +1,8 @@
-"""Benchmark simcore.render: ms per epoch for the 14 diodes at the sample counts that reach
+"""Benchmark simcore.render.irradiance: ms per epoch for the 14 diodes at the sample counts that reach
 0.2 % (direct) and 1 % (albedo) relative standard error, and rays per second.
 
 Geometry: the thesis' tilt-20 / FOV-70 satellite (scenes/tilt20_fov70.toml and its
-mesh from scenes.geometry) on a synthetic circular orbit like ESTCube-1's (665 km,
+mesh from scenes.meshes) on a synthetic circular orbit like ESTCube-1's (665 km,
 inclination 98 deg, Sun 20 deg out of the orbit plane so that every orbit has an
 eclipse), Earth turning under it, tumbling at 1.9 deg/s (thesis sec. 4.1) about a fixed
 body axis; TOMS 2005 reflectivity. One orbit at 1 s steps by default: a sample of the
@@ -19,9 +19,8 @@ import time
 
 import numpy as np
 
-import simcore  # noqa: F401  (sets DRJIT_LIBLLVM_PATH)
 from simcore.constants import OMEGA_EARTH_RAD_S, R_EARTH_MEAN_M
-from simcore.render import DiodeSet, Renderer
+from simcore.render.irradiance import DiodeSurfaces, Renderer
 
 MU_EARTH = 3.986004418e14  # m^3/s^2, IERS conventions (2010)
 
@@ -63,12 +62,12 @@ def main():
     args = ap.parse_args()
 
     from scenes.config import SatelliteConfig
-    from scenes.geometry import build_satellite_mesh
+    from scenes.meshes import build_satellite_mesh
     cfg = SatelliteConfig.load(args.config)
     mesh = build_satellite_mesh(cfg)
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
-    rend = Renderer(DiodeSet.from_config(cfg), mesh, variant=args.variant, threads=args.threads)
+    rend = Renderer(DiodeSurfaces.from_config(cfg), mesh, variant=args.variant, threads=args.threads)
     sun, earth, rot = synthetic_orbit(args.epochs, args.step_s)
     targets = dict(rel_se_direct=0.002, rel_se_albedo=0.01)
     rend.render(sun[:64], earth[:64], rot[:64], seed=99, **targets)     # compile the kernels

@@ -43,7 +43,7 @@ used.
 :func:`model_albedo_estimate` -- the albedo is not estimated from the
 readings (Albedo-Sun, Sun-Albedo-Sun, eqs. 4.32-4.45) but *predicted on board*
 from the orbit (TLE + clock), the previous attitude estimate and an on-board
-reflectivity map with the Bhanderi model (:func:`simcore.onboard.predict_albedo_effective`
+reflectivity map with the Bhanderi model (:func:`simcore.radiometry.onboard.predict_albedo_effective`
 computes that prediction; this function only sees measurements, normals and
 the prediction). The prediction is subtracted and the Sun vector solved on the
 diodes that still see the Sun. With ``fit_gain`` the level of the on-board map
@@ -180,7 +180,7 @@ def _prediction(e_alb_pred, shape):
         a = a[None, :]
     if a.shape != shape:
         raise ValueError(f"E_alb_pred must be the predicted albedo (N, K) = {shape} in the same effective "
-                         f"W/m^2 as E_p (see simcore.onboard.predict_albedo_effective), got shape "
+                         f"W/m^2 as E_p (see simcore.radiometry.onboard.predict_albedo_effective), got shape "
                          f"{np.shape(e_alb_pred)}")
     return a
 

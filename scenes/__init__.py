@@ -1,4 +1,4 @@
 """Satellite descriptions (TOML data) and the code that builds their geometry."""
-from scenes.config import ConfigError, Diode, SatelliteConfig, list_configs
+from scenes.config import ConfigError, MountedDiode, SatelliteConfig, list_configs
 
-__all__ = ["ConfigError", "Diode", "SatelliteConfig", "list_configs"]
+__all__ = ["ConfigError", "MountedDiode", "SatelliteConfig", "list_configs"]

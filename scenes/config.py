@@ -2,7 +2,7 @@
 
 A configuration is a 2U CubeSat body plus a list of photodiodes, each with a
 unit normal, a mounting panel, a position on that panel, a tilting ramp and a
-well aperture (:class:`simcore.aperture.WellAperture`). The shipped files are
+well aperture (:class:`simcore.shapes.aperture.WellAperture`). The shipped files are
 the thesis' layouts (sec. 3.2.4, figures 3.7-3.13); the format is described
 in ``scenes/FORMAT.md`` so users can write their own.
 
@@ -26,8 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from simcore.aperture import EQ415_CUTOFF_DEG, WellAperture, diode_frame
+from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture, diode_frame
 from simcore.constants import BPW34_AREA_M2
+from simcore.shapes.occlusion import convex_hull
 
 CONFIG_DIR = Path(__file__).resolve().parent
 MM = 1e-3
@@ -140,7 +141,7 @@ class Body:
 
 
 @dataclass(frozen=True, eq=False)
-class Diode:
+class MountedDiode:
     """One photodiode: identity, orientation, position and aperture (body frame, SI)."""
 
     index: int
@@ -301,7 +302,7 @@ def _build_diode(index, table, body, mount):
     centre = _place(frame, panel, at_m, aperture, body, mount)
     for arr in (n, frame, at_m, centre):
         arr.flags.writeable = False
-    return Diode(index=index, name=str(table.get("name", f"d{index}")), normal_body=n, frame_body=frame,
+    return MountedDiode(index=index, name=str(table.get("name", f"d{index}")), normal_body=n, frame_body=frame,
                  position_body_m=centre, aperture=aperture, fov_deg=fov, panel=panel, at_m=at_m)
 
 
@@ -310,26 +311,7 @@ def _footprint(diode, body, mount):
     _, t, a = panel_axes(diode.panel)
     bottom, top = diode.mount_corners_m(mount)
     pts = np.vstack([bottom, top]) - body.panel_centre_m(diode.panel)
-    return _hull2d(np.column_stack([pts @ t, pts @ a]))
-
-
-def _hull2d(points):
-    """Return the convex hull of 2-D points, counter-clockwise (Andrew's monotone chain)."""
-    pts = sorted(map(tuple, np.round(points, 12)))
-
-    def cross(o, p, q):
-        return (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0])
-
-    def half(seq):
-        out = []
-        for q in seq:
-            while len(out) >= 2 and cross(out[-2], out[-1], q) <= 0:
-                out.pop()
-            out.append(q)
-        return out
-
-    lower, upper = half(pts), half(pts[::-1])
-    return np.array(lower[:-1] + upper[:-1])
+    return np.array(convex_hull([tuple(p) for p in np.round(np.column_stack([pts @ t, pts @ a]), 12)]))
 
 
 def _convex_overlap(poly_a, poly_b):

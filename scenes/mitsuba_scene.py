@@ -21,12 +21,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import matplotlib.image
 
-import simcore  # noqa: F401  (must precede drjit/mitsuba: sets DRJIT_LIBLLVM_PATH)
+from scenes.config import SatelliteConfig
+from scenes.meshes import build_parts
+
+from simcore import _llvm
+from simcore.environment.maps import named_map
 from simcore.constants import R_EARTH_MEAN_M
 
 VARIANT = "llvm_ad_mono"
-TOMS_FILE = "toms_2005_mean.npz"
 
 # false colours (linear RGB multipliers) per part kind, applied to the mono radiance
 _TINT = {"earth": (0.70, 0.85, 1.15), "body": (1.0, 1.0, 1.0), "ramp": (1.15, 0.95, 0.55),
@@ -35,7 +39,7 @@ _REFLECTANCE = {"body": 0.4, "ramp": 0.45, "floor": 0.2, "well": 0.2, "diode": 0
 
 
 def _mi():
-    import mitsuba as mi
+    mi = _llvm.import_mitsuba()
 
     if mi.variant() != VARIANT:
         mi.set_variant(VARIANT)
@@ -96,11 +100,8 @@ def toms_texture_array():
 
     Raw values, not clamped.
     """
-    from importlib.resources import files
-
-    with files("simcore").joinpath("data", TOMS_FILE).open("rb") as fh:
-        data = np.load(fh)
-        refl, lon = np.asarray(data["reflectivity"], float), np.asarray(data["lon_deg"], float)
+    m = named_map("toms2005")
+    refl, lon = np.asarray(m.values, float), np.asarray(m.lon_deg, float)
     shift = int(np.argmin(np.abs(np.mod(lon, 360.0) - (360.0 / lon.size) / 2.0)))  # the cell starting at lon 0
     return np.ascontiguousarray(np.roll(refl, -shift, axis=1)[::-1])
 
@@ -129,7 +130,6 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
                 fov_deg=36.0, max_depth=4):
     """Return (mitsuba scene dict, shape ids, their part kinds) for the picture (render frame, m)."""
     mi = _mi()
-    from scenes.geometry import build_parts
 
     g = default_geometry() if epoch_geometry is None else epoch_geometry
     if isinstance(g, dict):
@@ -222,7 +222,6 @@ def picture(config, path_png, epoch_geometry=None, spp=64, resolution=(960, 540)
     the rendered radiance in units of E_sun / pi (the Sun's irradiance is pi).
     """
     mi = _mi()
-    from scenes.config import SatelliteConfig
 
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
@@ -244,7 +243,6 @@ def picture(config, path_png, epoch_geometry=None, spp=64, resolution=(960, 540)
         kind[mask & hit] = by_id[shape.id()]
     kind = kind.reshape(h, w)
     rgb = _tone_map(radiance * float(exposure), kind)
-    import matplotlib.image
 
     matplotlib.image.imsave(str(path_png), rgb)
     return Picture(str(path_png), rgb, radiance, kind)

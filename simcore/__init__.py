@@ -1,27 +1,55 @@
-"""sunsim's physics pipeline: time, orbit, frames, Sun, eclipse, attitude,
-albedo, rendering, sensor chain.
+"""sunsim's physics pipeline, one stage per subpackage, data flowing one way:
 
-Importing simcore points Dr.Jit at a working libLLVM before drjit can be
-imported (see :mod:`simcore._llvm`); Mitsuba itself is loaded only when
-something renders.
+``environment`` (time, TLE orbit, frames, Sun, eclipse, attitude, Earth maps, study geometry)
+-> ``scenes`` (the satellite) -> ``radiometry`` (analytic albedo and diode irradiance, the check)
+and ``render`` (Monte-Carlo irradiance) -> ``sensor`` (photodiode chain) -> ``estimators``
+-> ``pipeline`` (runs, the check's verdict, evaluation, sweeps) -> ``studies`` -> ``plots``, ``cli``.
+
+This module re-exports the supported names (skyfield's ``api`` in spirit), each loaded on first
+use (PEP 562), so that ``import simcore`` stays cheap and importing one stage (e.g. ``scenes``,
+which builds on ``simcore.shapes``) never drags in the stages above it. Dr.Jit and Mitsuba are
+loaded, their libLLVM configured, only where they are first used (:func:`simcore._llvm.import_drjit`).
 """
-from simcore import _llvm
+from simcore._version import __version__
 
-_llvm.configure()
+# supported name -> the module that defines it
+_EXPORTS = {
+    # environment: time, orbit, attitude, Earth maps, the per-epoch study geometry
+    "Epochs": "simcore.environment.epochs",
+    "Orbit": "simcore.environment.orbit", "OrbitState": "simcore.environment.orbit",
+    "TLEError": "simcore.environment.orbit",
+    "Attitude": "simcore.environment.attitude", "tumble": "simcore.environment.attitude",
+    "ReflectivityMap": "simcore.environment.maps", "named_map": "simcore.environment.maps",
+    "StudyGeometry": "simcore.environment.geometry", "compute_geometry": "simcore.environment.geometry",
+    # the satellite
+    "SatelliteConfig": "scenes.config",
+    "WellAperture": "simcore.shapes.aperture", "diode_frame": "simcore.shapes.aperture",
+    # analytic model and renderer
+    "albedo_cells": "simcore.radiometry.albedo",
+    "BodyBox": "simcore.radiometry.analytic", "diode_irradiance": "simcore.radiometry.analytic",
+    "DiodeSurfaces": "simcore.render.irradiance", "Renderer": "simcore.render.irradiance",
+    # sensor chain
+    "DIODES": "simcore.sensor.chain", "SensorChain": "simcore.sensor.chain",
+    # runs
+    "RunOptions": "simcore.pipeline.run", "execute": "simcore.pipeline.run", "open_run": "simcore.pipeline.run",
+    "check_run": "simcore.pipeline.run",
+    "run_errors": "simcore.pipeline.evaluate", "evaluate_run": "simcore.pipeline.evaluate",
+    # studies
+    "coverage_fractions": "simcore.studies.coverage", "coverage_map": "simcore.studies.coverage",
+}
 
-from simcore.albedo import albedo_cells  # noqa: E402
-from simcore.analytic import BodyBox, diode_irradiance  # noqa: E402
-from simcore.aperture import WellAperture, diode_frame  # noqa: E402
-from simcore.attitude import Attitude, tumble  # noqa: E402
-from simcore.coverage import coverage_fractions, coverage_map  # noqa: E402
-from simcore.epochs import Epochs  # noqa: E402
-from simcore.maps import ReflectivityMap  # noqa: E402
-from simcore.orbit import Orbit, OrbitState, TLEError  # noqa: E402
-from simcore.sensor import DIODES, SensorChain  # noqa: E402
-from simcore.study import Geometry, compute_geometry  # noqa: E402
+__all__ = sorted(_EXPORTS) + ["__version__"]
 
-__version__ = "0.1.0"
 
-__all__ = ["Attitude", "BodyBox", "DIODES", "Epochs", "Geometry", "Orbit", "OrbitState", "ReflectivityMap",
-           "SensorChain", "TLEError", "WellAperture", "albedo_cells", "compute_geometry", "coverage_fractions",
-           "coverage_map", "diode_frame", "diode_irradiance", "tumble", "__version__"]
+def __getattr__(name):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'simcore' has no attribute {name!r}")
+    import importlib
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -80,3 +80,21 @@ def configure():
         return None
     os.environ[ENV] = path
     return path
+
+
+def import_drjit():
+    """Return the ``drjit`` module, imported after :func:`configure` has pointed it at a working libLLVM.
+
+    Every place in sunsim that uses Dr.Jit (or Mitsuba, which loads it) imports it through here,
+    so importing sunsim itself configures nothing and loads nothing heavy.
+    """
+    configure()
+    import drjit
+    return drjit
+
+
+def import_mitsuba():
+    """Return the ``mitsuba`` module, imported after :func:`configure` (see :func:`import_drjit`)."""
+    configure()
+    import mitsuba
+    return mitsuba

@@ -9,9 +9,7 @@ def main():
     except _llvm.LLVMNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    _llvm.configure()
-    import drjit as dr
-    import mitsuba as mi
+    dr, mi = _llvm.import_drjit(), _llvm.import_mitsuba()
     mi.set_variant("llvm_ad_mono")
     x = dr.arange(mi.Float, 4)
     total = float(dr.sum(x * x)[0]) if hasattr(dr.sum(x * x), "__len__") else float(dr.sum(x * x))

@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 
-import simcore
+from simcore._version import __version__
 
 DEFAULT_TLE_HELP = "TLE file (2- or 3-line; default: the shipped ESTCube-1 set, epoch 2016-07-27)"
 
@@ -26,7 +26,7 @@ def _add_orbit_options(p):
 
 
 def _geometry(args):
-    from simcore.run import RunOptions, study_geometry
+    from simcore.pipeline.run import RunOptions, study_geometry
     orbit, _, geometry = study_geometry(RunOptions(tle=args.tle, satellite=args.satellite, start=args.start,
                                                    duration_s=args.duration, step_s=args.step,
                                                    spin_rate_deg_s=args.spin_rate))
@@ -36,7 +36,7 @@ def _geometry(args):
 def cmd_summary(args):
     """Orbit / Sun / eclipse summary of a study (what `run` shows before rendering)."""
     from simcore.constants import R_EARTH_MEAN_M
-    from simcore.study import eclipse_events, orbital_period_s
+    from simcore.environment.geometry import eclipse_events, orbital_period_s
     orbit, g = _geometry(args)
     alt_km = (np.linalg.norm(g.r_sat_gcrs_m, axis=1) - R_EARTH_MEAN_M) / 1e3
     events = eclipse_events(g)
@@ -96,8 +96,8 @@ def _add_render_options(p):
 
 
 def run_options(args):
-    """Return the simcore.run.RunOptions of parsed ``run`` arguments."""
-    from simcore.run import RunOptions
+    """Return the simcore.pipeline.run.RunOptions of parsed ``run`` arguments."""
+    from simcore.pipeline.run import RunOptions
     samples = args.samples
     return RunOptions(
         config=args.config, tle=args.tle, satellite=args.satellite, start=args.start, duration_s=args.duration,
@@ -113,7 +113,7 @@ def cmd_run(args):
     """Render a study, check it against the analytic model, write the netCDF file."""
     import os
     import time
-    from simcore.run import execute
+    from simcore.pipeline.run import execute
     opts = run_options(args)
     if opts.output == "runs/default.nc":
         os.makedirs("runs", exist_ok=True)
@@ -144,7 +144,7 @@ def cmd_coverage(args):
     """HEALPix coverage fractions (thesis figs. 3.7-3.13) and a Mollweide map per configuration."""
     import os
     from scenes.config import SatelliteConfig
-    from simcore.coverage import coverage_fractions, plot_coverage
+    from simcore.studies.coverage import coverage_fractions, plot_coverage
     results = []
     for name in args.configs:
         cfg = SatelliteConfig.load(name, dead=args.dead)
@@ -175,7 +175,7 @@ def cmd_view(args):
 
 def cmd_validate(args):
     """The rendered-vs-analytic report of a run file; exit status 1 outside tolerance."""
-    from simcore.run import check_run, open_run, recompute_analytic
+    from simcore.pipeline.run import check_run, open_run, recompute_analytic
     if args.recompute_analytic:
         recompute_analytic(args.run, log=None if args.json else (lambda m: print(m, file=sys.stderr)))
     ds = open_run(args.run)
@@ -198,8 +198,8 @@ def cmd_validate(args):
 def cmd_estimate(args):
     """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
     import os
-    from simcore.evaluate import evaluate_run
-    from simcore.run import open_run
+    from simcore.pipeline.evaluate import evaluate_run
+    from simcore.pipeline.run import open_run
     ds = open_run(args.run)
     errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
     if args.plots:
@@ -225,8 +225,8 @@ def cmd_estimate(args):
 
 def cmd_sweep(args):
     """Configurations x start dates x spin rates x seeds on Dask, into one dataset."""
-    from simcore.run import RunOptions
-    from simcore.sweep import sweep
+    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.sweep import sweep
     samples = args.samples
     base = RunOptions(tle=args.tle, satellite=args.satellite, duration_s=args.duration, step_s=args.step,
                       rel_se_direct=None if samples else args.accuracy[0],
@@ -245,7 +245,7 @@ def cmd_sweep(args):
 
 def cmd_reproduce(args):
     """The thesis' chapter-4 study on rendered irradiance: renders what is missing, writes the results page."""
-    from simcore.reproduce import reproduce
+    from simcore.studies.reproduce import reproduce
     log = (lambda m: print(m, file=sys.stderr))
     res = reproduce(args.folder, span=args.span, page_folder=args.page, log=log, render=not args.no_render,
                     second_spin=None if args.span == "short" else args.second_spin,
@@ -258,9 +258,25 @@ def cmd_reproduce(args):
     return 0
 
 
+def _none_or_float(text):
+    return None if text.lower() in ("none", "eq415", "design") else float(text)
+
+
+def _add_aperture_sweep_options(p):
+    """Add the aperture sweep's options: --heights (mm; 'eq415' = the eq. 4.15 design), --tilts (deg),
+    --fovs (deg), --step (s), --dead, -o/--out."""
+    p.add_argument("--heights", nargs="+", type=_none_or_float, default=[0.3, 0.5, 1.0],
+                   help="well heights in mm ('eq415': the eq. 4.15 design height for each FOV)")
+    p.add_argument("--tilts", nargs="+", type=float, default=[20.0, 25.0, 30.0], help="ramp tilts in deg")
+    p.add_argument("--fovs", nargs="+", type=float, default=[70.0, 75.0], help="FOVs in deg (full response up to it)")
+    p.add_argument("--step", type=float, default=20.0, help="orbit sampling step in s (one orbit)")
+    p.add_argument("--dead", nargs="*", type=int, default=[0], help="dead diode indices (thesis: 0)")
+    p.add_argument("-o", "--out", required=True, help="output folder")
+
+
 def cmd_aperture_sweep(args):
     """Aperture height x tilt x FOV -> coverage, albedo fraction, estimator errors over one orbit."""
-    from simcore.aperture_study import run_aperture_sweep
+    from simcore.studies.aperture import run_aperture_sweep
     rows = run_aperture_sweep(args.out, args.heights, args.tilts, args.fovs, step_s=args.step, dead=tuple(args.dead),
                               log=(lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr)))
     if args.json:
@@ -272,7 +288,7 @@ def cmd_aperture_sweep(args):
 
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
-    p.add_argument("--version", action="version", version=f"sunsim {simcore.__version__}")
+    p.add_argument("--version", action="version", version=f"sunsim {__version__}")
     sub = p.add_subparsers(dest="command")
 
     r = sub.add_parser("run", help="the main job: render a study (default: ESTCube-1, 2016-07-02, tilt20_fov70, "
@@ -346,10 +362,9 @@ def build_parser():
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_reproduce)
 
-    from simcore.aperture_study import build_parser as _aperture_parser
     ap = sub.add_parser("aperture-sweep", help="aperture height x tilt x FOV -> coverage, albedo fraction seen, "
                                                "estimator error over an orbit")
-    _aperture_parser(ap)
+    _add_aperture_sweep_options(ap)
     ap.add_argument("--json", action="store_true")
     ap.set_defaults(func=cmd_aperture_sweep)
 

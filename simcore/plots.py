@@ -23,8 +23,10 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.patheffects import withStroke
 from matplotlib.transforms import blended_transform_factory
+from matplotlib.tri import Triangulation
 
 from estimators.metrics import hanning_mean_std
+from simcore.shapes.aperture import EQ415_CUTOFF_DEG
 
 PNG_DPI = 150
 COVERAGE_COLOURS = ("#d62728", "#ffd21f", "#2ca02c")  # red <= 2, yellow 3, green >= 4 (thesis figs. 3.7-3.13)
@@ -382,7 +384,7 @@ def plot_albedo_cells(cells, *, lat_deg=None, lon_deg=None, sat_lat_lon_deg=None
                       background=None, scale="log", title=None, path=None):
     """Return a Figure of the albedo irradiance at the satellite contributed by each map cell, W/m^2, on a world map.
 
-    ``cells`` (n_lat, n_lon) W/m^2 (e.g. :func:`simcore.albedo.albedo_cells`), row 0 the
+    ``cells`` (n_lat, n_lon) W/m^2 (e.g. :func:`simcore.radiometry.albedo.albedo_cells`), row 0 the
     SOUTH band and column 0 the western-most cell unless ``lat_deg``/``lon_deg`` (cell
     centres) say otherwise. Equirectangular, north up, east right. ``scale``: 'log'
     (4 decades below the brightest cell; fainter cells take the lowest colour) or 'linear'.
@@ -541,7 +543,7 @@ def plot_coverage_map(counts, *, title=None, normals_body=None, dead=(), path=No
     """Return a Figure of the redundancy coverage of the body-frame sphere: Mollweide map, red/yellow/green.
 
     ``counts`` (12 nside^2,) HEALPix RING-order counts of live diodes that see each pixel
-    (:func:`simcore.coverage.coverage_map`). Red: <= 2 diodes, yellow: 3, green: >= 4
+    (:func:`simcore.studies.coverage.coverage_map`). Red: <= 2 diodes, yellow: 3, green: >= 4
     (thesis figs. 3.7-3.13); the equal-area fractions go in the title. Map centre = body +x,
     pole = body +z, azimuth (from +x towards +y) increasing to the right. ``normals_body``
     (K, 3) optionally marks the diode normals (index labels), ``dead`` indices as crosses.
@@ -613,3 +615,121 @@ def plot_coverage_map(counts, *, title=None, normals_body=None, dead=(), path=No
 
 __all__ = ["plot_albedo_cells", "plot_angular_response", "plot_coverage_map", "plot_diode_irradiance",
            "plot_estimator_error", "save_figure"]
+
+
+# ----------------------------------------------------------------------------- aperture studies
+
+def plot_cuts(study, path=None, zoom_from_deg=None):
+    """Return a list of Figures (one per azimuth) of a :class:`CutStudy` with
+    :func:`simcore.plots.plot_angular_response`; ``zoom_from_deg`` (e.g. 60) draws only the angles from
+    there on; ``path`` (e.g. 'out/cut') writes ``path_phi<phi>.png``."""
+    figs = []
+    keep = np.ones(study.theta_deg.shape, bool) if zoom_from_deg is None else study.theta_deg >= zoom_from_deg
+    for phi, c in study.curves.items():
+        p = None if path is None else f"{path}_phi{phi:g}.png"
+        where = "wall axis" if phi == 0 else ("diagonal" if phi == 45 else f"azimuth {phi:g} deg")
+        figs.append(plot_angular_response(study.theta_deg[keep], {k: v[keep] for k, v in c.items()},
+                                          fov_deg=study.fov_deg, cutoff_deg=EQ415_CUTOFF_DEG,
+                                          errors={k: v[keep] for k, v in study.errors[phi].items()}, path=p,
+                                          title=f"Angular response along the {where} (phi = {phi:g} deg)"))
+    return figs
+
+
+def plot_response_map(rmap, path=None):
+    """Return a Figure: the traced response over the diode's hemisphere (polar plot: radius = incidence
+    angle, angle = azimuth from the u wall axis), traced - overlap in standard errors, and eq. 4.15 -
+    overlap; ``path`` writes it (.png/.pdf)."""
+    d = rmap.d_diode
+    keep = d[:, 2] > -0.05
+    th = np.degrees(np.arccos(np.clip(d[keep, 2], -1, 1)))
+    ph = np.arctan2(d[keep, 1], d[keep, 0])
+    x, y = th * np.cos(ph), th * np.sin(ph)
+    tri = Triangulation(x, y)
+    fig = Figure(figsize=(13.5, 4.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 3)
+    panels = [(rmap.traced[keep], f"{rmap.label}: response", "viridis", (0, 1)),
+              (rmap.z_score[keep], "(traced - overlap) / SE", "coolwarm", (-4, 4)),
+              ((rmap.eq415 - rmap.overlap)[keep], "eq. 4.15 - overlap", "coolwarm", None)]
+    for ax, (val, title, cmap, lim) in zip(axes, panels):
+        if lim is None:
+            m = float(np.max(np.abs(val))) or 1.0
+            lim = (-m, m)
+        pc = ax.tripcolor(tri, val, shading="gouraud", cmap=cmap, vmin=lim[0], vmax=lim[1])
+        for r in (30, 60, 90):
+            t = np.linspace(0, 2 * np.pi, 200)
+            ax.plot(r * np.cos(t), r * np.sin(t), color="0.3", lw=0.5)
+        ax.plot([-90, 90], [0, 0], color="0.3", lw=0.4)
+        ax.plot([0, 0], [-90, 90], color="0.3", lw=0.4)
+        ax.set_aspect("equal")
+        ax.set_xlim(-95, 95)
+        ax.set_ylim(-95, 95)
+        ax.set_xlabel("theta cos(phi) [deg] (u wall axis)")
+        ax.set_ylabel("theta sin(phi) [deg] (v wall axis)")
+        ax.set_title(title, fontsize=10)
+        fig.colorbar(pc, ax=ax, shrink=0.8)
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+def plot_sweep(rows, path=None, estimators=("wls", "albedo_sun")):
+    """Return a Figure of a sweep table: green fraction, albedo fraction and the estimators' mean sunlit
+    errors against the well height, one line per (tilt, FOV); ``path`` writes it."""
+    metrics = [("green", "coverage: green fraction (FOV cones) [-]"),
+               ("green_response", "coverage: green fraction (response >= 1 %) [-]"),
+               ("albedo_fraction", "albedo / total, sunlit [-]")]
+    metrics += [(f"{e}_mean_deg", f"{e}: mean sunlit error [deg]") for e in estimators]
+    metrics += [(f"{e}_p95_deg", f"{e}: p95 sunlit error [deg]") for e in estimators]
+    fig = Figure(figsize=(4.2 * ((len(metrics) + 1) // 2), 7.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, (len(metrics) + 1) // 2, squeeze=False).T.ravel()
+    keys = sorted({(r["tilt_deg"], r["fov_deg"]) for r in rows})
+    colours = ["#1f5fa8", "#e08a00", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#17becf", "#7f7f7f"]
+    for ax, (col, label) in zip(axes, metrics):
+        for j, (tilt, fov) in enumerate(keys):
+            sel = sorted((r for r in rows if (r["tilt_deg"], r["fov_deg"]) == (tilt, fov) and r.get("feasible")),
+                         key=lambda r: r["height_mm"])
+            if not sel:
+                continue
+            ax.plot([r["height_mm"] for r in sel], [r.get(col, np.nan) for r in sel], marker="o",
+                    color=colours[j % len(colours)], ls="-" if fov == keys[0][1] else "--",
+                    label=f"tilt {tilt:g}, FOV {fov:g}")
+        ax.set_xlabel("well height [mm]")
+        ax.set_ylabel(label)
+        ax.grid(True, lw=0.4, alpha=0.5)
+    for ax in axes[len(metrics):]:
+        ax.set_visible(False)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 6), fontsize=9, frameon=False)
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+def plot_reflectance_series(series, path=None):
+    """Return a Figure: response cuts for each wall reflectance (left) and their excess over black walls
+    with +-2 SE bands (right, log scale); ``path`` writes it."""
+    th = series["theta_deg"]
+    fig = Figure(figsize=(11.5, 4.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax1, ax2 = fig.subplots(1, 2)
+    ax1.plot(th, series["overlap"], color="k", lw=2.5, alpha=0.35, label="analytic overlap (black)")
+    for rho, r, se in zip(series["rho"], series["response"], series["response_se"]):
+        line, = ax1.plot(th, r, lw=1.3, label=f"rho {rho:g}")
+        if rho > 0:
+            ex = r - series["overlap"]
+            ax2.plot(th, np.where(ex > 0, ex, np.nan), color=line.get_color(), lw=1.3, label=f"rho {rho:g}")
+            ax2.fill_between(th, np.maximum(ex - 2 * se, 1e-6), ex + 2 * se, color=line.get_color(), alpha=0.2)
+    ax1.set_ylabel("response relative to normal incidence [-]")
+    ax2.set_ylabel("response - black-wall overlap [-]")
+    ax2.set_yscale("log")
+    ax2.set_ylim(1e-5, 1)
+    for ax in (ax1, ax2):
+        ax.set_xlabel(f"incidence angle [deg] (azimuth {series['phi_deg']:g} deg)")
+        ax.grid(True, lw=0.4, alpha=0.5)
+        ax.axvline(EQ415_CUTOFF_DEG, color="0.4", ls=":", lw=1)
+        ax.legend(fontsize=8)
+    if path is not None:
+        save_figure(fig, path)
+    return fig

@@ -2,7 +2,7 @@
 with seed 0 and checked against the independent analytic model on every diode-epoch."""
 import numpy as np
 
-from simcore.run import RunOptions, check_run, execute
+from simcore.pipeline.run import RunOptions, check_run, execute
 
 
 def test_one_full_orbit_passes_the_analytic_check(tmp_path):

@@ -1,4 +1,4 @@
-"""Tests of the estimators beyond the thesis (estimators.advanced) and the on-board albedo model (simcore.onboard).
+"""Tests of the estimators beyond the thesis (estimators.advanced) and the on-board albedo model (simcore.radiometry.onboard).
 
 Oracles: noise-free readings built here from the thesis' sensor model (cosine diodes, the
 eq. 4.15 FOV response, effective irradiance E_S0, sec. 4.2.1) plus synthetic albedo whose
@@ -238,10 +238,10 @@ def test_model_albedo_exact_on_the_cube_with_gain(rng):
 
 # ---- on-board prediction ---------------------------------------------------------------------
 def test_previous_attitude_is_stale_and_seeded():
-    from simcore.onboard import previous_attitude
+    from simcore.radiometry.onboard import previous_attitude
     rng = np.random.default_rng(1)
     q = rng.normal(size=(4000, 4))
-    from simcore.attitude import quat_to_matrix
+    from simcore.environment.attitude import quat_to_matrix
     R = quat_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True))
     R1 = previous_attitude(R, lag_steps=1)
     assert np.all(np.isnan(R1[0]))
@@ -286,10 +286,10 @@ def test_lambert_oracle_far_field_is_the_geometric_albedo():
 
 
 def test_predict_albedo_matches_lambert_sphere_closed_form():
-    from simcore.aperture import WellAperture, diode_frame
+    from simcore.shapes.aperture import WellAperture, diode_frame
     from simcore.constants import AU_M, R_EARTH_MEAN_M
-    from simcore.maps import ReflectivityMap
-    from simcore.onboard import predict_albedo_effective
+    from simcore.environment.maps import ReflectivityMap
+    from simcore.radiometry.onboard import predict_albedo_effective
 
     rho = 0.3
     refl = ReflectivityMap.from_array(np.full((180, 360), rho))
@@ -307,9 +307,9 @@ def test_predict_albedo_matches_lambert_sphere_closed_form():
 
 
 def test_predict_albedo_nan_attitude_gives_nan_row():
-    from simcore.aperture import WellAperture, diode_frame
+    from simcore.shapes.aperture import WellAperture, diode_frame
     from simcore.constants import AU_M, R_EARTH_MEAN_M
-    from simcore.onboard import predict_albedo_effective
+    from simcore.radiometry.onboard import predict_albedo_effective
 
     r = R_EARTH_MEAN_M + 665e3
     geo = {"r_sat_ecef_m": np.array([[r, 0, 0], [r, 0, 0]]), "r_sun_ecef_m": np.array([[AU_M, 0, 0]] * 2),
@@ -321,7 +321,7 @@ def test_predict_albedo_nan_attitude_gives_nan_row():
 
 
 def test_evaluate_cross_map_table_on_a_short_window():
-    from simcore.onboard import evaluate_cross_map
+    from simcore.studies.cross_map import evaluate_cross_map
     rows, errors = evaluate_cross_map("tilt20_fov70", start_s=20000, stop_s=20030, return_errors=True)
     assert len(rows) == 2 * 6          # two (truth, on-board) pairings x six estimators
     keys = {"truth_map", "onboard_map", "estimator", "n_sunlit", "n_invalid", "mean_deg", "p95_deg", "max_deg"}

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from simcore.albedo import _matlab_round, albedo_cells, reflected_power_w
+from simcore.radiometry.albedo import _matlab_round, albedo_cells, reflected_power_w
 from simcore.constants import AU_M, R_EARTH_MEAN_M
-from simcore.maps import ReflectivityMap
+from simcore.environment.maps import ReflectivityMap
 
 R = R_EARTH_MEAN_M
 E_SUN = 1366.1

@@ -3,13 +3,12 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-import simcore  # noqa: F401  (Dr.Jit's libLLVM before drjit)
-from simcore.albedo import albedo_cells
-from simcore.analytic import cell_runs, diode_irradiance
-from simcore.aperture import WellAperture, diode_frame
+from simcore.radiometry.albedo import albedo_cells
+from simcore.radiometry.analytic import cell_runs, diode_irradiance
+from simcore.shapes.aperture import WellAperture, diode_frame
 from simcore.constants import R_EARTH_MEAN_M
-from simcore.maps import ReflectivityMap
-from simcore.response import CosineResponse, Eq415Response, ReflectionResponse
+from simcore.environment.maps import ReflectivityMap
+from simcore.radiometry.response import CosineResponse, Eq415Response, ReflectionResponse
 
 R = R_EARTH_MEAN_M
 E_SUN = 1366.1
@@ -131,7 +130,7 @@ def test_nadir_plate_matches_the_lambert_cap_integral(backend, precision, rtol, 
 
 
 def test_cosine_diodes_sum_the_albedo_cells(rng):
-    # The same physics through simcore.albedo: sum_c E_c max(0, n . e_c).
+    # The same physics through simcore.radiometry.albedo: sum_c E_c max(0, n . e_c).
     r, s, rot = _orbit(rng, 6)
     frames = _tilt_frames()
     toms = ReflectivityMap.toms2005()

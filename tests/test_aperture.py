@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from simcore.aperture import WellAperture, diode_frame
+from simcore.shapes.aperture import WellAperture, diode_frame
 
 
 def _dir(theta_deg, phi_deg=0.0):

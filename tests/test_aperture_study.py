@@ -2,10 +2,11 @@
 import numpy as np
 import pytest
 
-import simcore  # noqa: F401  (libLLVM for Dr.Jit before mitsuba)
-from simcore import aperture_study as A
-from simcore.aperture import WellAperture
-from simcore.walls import TabulatedResponse, WallMaterial, trace_well
+from simcore.cli import main as cli_main
+from simcore.environment.geometry import one_orbit_geometry
+from simcore.studies import aperture as A
+from simcore.shapes.aperture import WellAperture
+from simcore.render.walls import TabulatedResponse, WallMaterial, trace_well
 
 AP70 = WellAperture.design(70.0)   # FOV 70: opening 5.28 mm, height 0.48 mm (scenes/FORMAT.md)
 
@@ -22,7 +23,7 @@ def _z(value, ref, se):
 # ----------------------------------------------------------------------------- black walls
 
 def test_traced_well_with_black_walls_equals_analytic_overlap():
-    # Oracle: the exact overlap of the diode with the shifted opening (simcore.aperture, a closed form).
+    # Oracle: the exact overlap of the diode with the shifted opening (simcore.shapes.aperture, a closed form).
     d = _grid(np.arange(0.0, 90.0, 6.0), [0.0, 20.0, 45.0])
     tr = trace_well(AP70, d, WallMaterial.black(), rays=20_000, seed=1)
     exact = AP70.response(d)
@@ -34,7 +35,7 @@ def test_traced_well_with_black_walls_equals_analytic_overlap():
 
 
 def test_renderer_black_well_equals_analytic_overlap():
-    # Oracle: as above; the renderer traces scenes.geometry's floor + well meshes (independent geometry code).
+    # Oracle: as above; the renderer traces scenes.meshes's floor + well meshes (independent geometry code).
     th = np.arange(60.0, 86.0, 3.0)
     d = _grid(th, [0.0, 30.0, 45.0])
     resp, se = A.traced_black_response(AP70, d, samples=4096, seed=3)
@@ -145,7 +146,7 @@ def test_tabulated_response_is_symmetric_and_exact_for_black_walls():
 
 
 def test_tabulated_response_works_in_the_albedo_sum():
-    from simcore.analytic import diode_irradiance
+    from simcore.radiometry.analytic import diode_irradiance
     tab = TabulatedResponse.trace(AP70, WallMaterial.aluminium(), theta_step_deg=15, phi_step_deg=45, rays=300)
     r_sat = np.array([[7.0e6, 0.0, 0.0]])
     r_sun = np.array([[1.5e11, 0.0, 0.0]])
@@ -178,7 +179,7 @@ def test_response_angles_of_the_cosine():
 def test_eq415_and_overlap_differ_between_fov_and_cutoff():
     # Both are 1 x cos up to the FOV and 0 beyond the cut-off on the wall axis (same design), but between
     # them eq. 4.15 is linear in cos and the overlap linear in tan: they differ there, and by azimuth.
-    from simcore.response import Eq415Response
+    from simcore.radiometry.response import Eq415Response
     eq = Eq415Response(70.0)
     th = np.array([30.0, 65.0, 75.0, 80.0, 84.0])
     axis = A.cut_directions(th, 0.0)
@@ -232,8 +233,8 @@ def test_self_shadowing_traced_own_mount_matches_analytic_reference():
 
 def test_sweep_rows_and_shipped_layout():
     from scenes.config import SatelliteConfig
-    from simcore.coverage import coverage_fractions
-    g = A.one_orbit_geometry(step_s=120.0)
+    from simcore.studies.coverage import coverage_fractions
+    g = one_orbit_geometry(step_s=120.0)
     rows = A.sweep_apertures([None, 1.0], [25.0], [75.0], geometry=g)
     assert [r["feasible"] for r in rows] == [True, False]
     assert "clearance" in rows[1]["reason"] and np.isnan(rows[1]["albedo_fraction"])
@@ -248,7 +249,7 @@ def test_sweep_rows_and_shipped_layout():
 
 def test_sweep_command_writes_table_and_plot(tmp_path):
     import csv
-    assert A.main(["--heights", "eq415", "--tilts", "20", "--fovs", "70", "--step", "300", "-o", str(tmp_path)]) == 0
+    assert cli_main(["aperture-sweep", "--heights", "eq415", "--tilts", "20", "--fovs", "70", "--step", "300", "-o", str(tmp_path)]) == 0
     with open(tmp_path / "sweep.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 1 and rows[0]["feasible"] == "True"

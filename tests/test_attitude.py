@@ -1,4 +1,4 @@
-"""Tests of simcore.attitude.
+"""Tests of simcore.environment.attitude.
 
 Oracle: scipy.spatial.transform.Rotation / Slerp (an independent
 implementation; SciPy stores quaternions SCALAR-LAST (x, y, z, w), so every
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from simcore.attitude import (DEFAULT_TUMBLE_AXIS, Attitude, matrix_to_quat, quat_conjugate, quat_multiply,
+from simcore.environment.attitude import (DEFAULT_TUMBLE_AXIS, Attitude, matrix_to_quat, quat_conjugate, quat_multiply,
                               quat_normalize, quat_to_matrix, tumble)
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from simcore.check import compare
+from simcore.pipeline.check import compare
 
 
 def _case(rng, n, se, band_scale):
@@ -40,7 +40,7 @@ def test_any_outlier_where_the_half_percent_band_rules_fails(rng):
 
 
 def test_poisson_tail_against_closed_forms():
-    from simcore.check import poisson_tail
+    from simcore.pipeline.check import poisson_tail
     # P(N >= 1) = 1 - exp(-lam); P(N >= 2) = 1 - exp(-lam) (1 + lam)   (Poisson pmf)
     assert poisson_tail(1, 0.3) == pytest.approx(1 - np.exp(-0.3))
     assert poisson_tail(2, 2.0) == pytest.approx(1 - np.exp(-2.0) * 3.0)

@@ -1,4 +1,4 @@
-"""HEALPix redundancy coverage (simcore.coverage) against the thesis' printed fractions and a closed form."""
+"""HEALPix redundancy coverage (simcore.studies.coverage) against the thesis' printed fractions and a closed form."""
 import matplotlib
 
 matplotlib.use("Agg")
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from scenes.config import SatelliteConfig
-from simcore.coverage import coverage_fractions, coverage_map, plot_coverage
+from simcore.studies.coverage import coverage_fractions, coverage_map, plot_coverage
 
 # Haave (2016), captions of figures 3.8-3.13 (14 diodes, diode 0 dead); printed as fractions to
 # 4 decimals (the '%' in the captions of 3.8 and 3.9 is a misprint: the three numbers sum to 1).

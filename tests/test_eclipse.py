@@ -1,4 +1,4 @@
-"""Tests of simcore.eclipse against independent oracles.
+"""Tests of simcore.environment.eclipse against independent oracles.
 
 * Thesis sec. 4.1.4, eqs. 4.6-4.9, coded literally here (theta vs theta_crit).
 * Eclipse fraction of a circular orbit vs beta angle, cylindrical shadow:
@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from simcore.constants import AU_M, R_EARTH_MEAN_M, R_SUN_M
-from simcore.eclipse import conical, cylindrical
+from simcore.environment.eclipse import conical, cylindrical
 
 R = R_EARTH_MEAN_M
 GM_EARTH = 3.986004418e14  # m^3/s^2, IERS Conventions (2010) table 1.1

@@ -5,7 +5,7 @@ import erfa
 import numpy as np
 import pytest
 
-from simcore.epochs import Epochs
+from simcore.environment.epochs import Epochs
 
 
 def test_iso_datetime_and_datetime64_agree():

@@ -16,8 +16,8 @@ import erfa
 import numpy as np
 import pytest
 
-from simcore import frames
-from simcore.epochs import Epochs
+from simcore.environment import frames
+from simcore.environment.epochs import Epochs
 
 ARCSEC = np.pi / (180.0 * 3600.0)
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from simcore.constants import R_EARTH_MEAN_M
-from simcore.maps import ReflectivityMap
+from simcore.environment.maps import ReflectivityMap
 
 
 @pytest.mark.parametrize("make", [

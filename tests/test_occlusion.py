@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from scenes.config import SatelliteConfig, panel_axes
-from simcore.analytic import solar_disc_offsets
-from simcore.occlusion import box_hit, direct_visibility, lit_fraction_with_box
+from simcore.radiometry.analytic import solar_disc_offsets
+from simcore.shapes.occlusion import box_hit, direct_visibility, lit_fraction_with_box
 
 
 def _segment_hits_box(o, d, half):

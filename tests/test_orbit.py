@@ -20,8 +20,8 @@ import pytest
 import sgp4
 from sgp4.io import fix_checksum
 
-from simcore.epochs import Epochs
-from simcore.orbit import Orbit, OrbitState, TLEError
+from simcore.environment.epochs import Epochs
+from simcore.environment.orbit import Orbit, OrbitState, TLEError
 
 SGP4_DIR = os.path.dirname(sgp4.__file__)
 ESTCUBE_L1 = "1 39161U 13021C   16209.16355149  .00000281  00000-0  53050-4 0  9997"

@@ -1,4 +1,4 @@
-"""Tests of simcore.render: radiometric identities first (bare plate, aperture overlap,
+"""Tests of simcore.render.irradiance: radiometric identities first (bare plate, aperture overlap,
 constant radiance, albedo quadrature), then precision, determinism, adaptivity and misuse.
 
 Monte-Carlo results are compared with z-scores against their own standard errors,
@@ -13,10 +13,11 @@ import pytest
 import trimesh
 from scipy.integrate import quad
 
-import simcore  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
-from simcore.aperture import WellAperture, diode_frame
+import simcore
+from simcore._llvm import import_drjit
+from simcore.shapes.aperture import WellAperture, diode_frame
 from simcore.constants import BPW34_AREA_M2, E_SUN_W_M2, R_EARTH_MEAN_M
-from simcore.render import (SUN_ANGULAR_RADIUS_RAD, DiodeSet, Renderer, RenderResult,
+from simcore.render.irradiance import (SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer, RenderResult,
                             choose_variant, render)
 
 A = float(np.sqrt(BPW34_AREA_M2))
@@ -24,12 +25,12 @@ R = R_EARTH_MEAN_M
 
 
 def _cuda_present():
-    import drjit as dr
+    dr = import_drjit()
     return bool(dr.has_backend(dr.JitBackend.CUDA))
 
 
 def _bare(normal=(0.0, 0.0, 1.0), position=(0.0, 0.0, 0.0)):
-    return DiodeSet(np.array([position], float), diode_frame(np.array(normal, float))[None], [A, A])
+    return DiodeSurfaces(np.array([position], float), diode_frame(np.array(normal, float))[None], [A, A])
 
 
 def _well_mesh(frame, centre, ap):
@@ -89,7 +90,7 @@ def test_missing_libllvm_raises_llvm_not_found_in_a_subprocess():
         code = (
             "import simcore\n"
             "from simcore._llvm import LLVMNotFoundError\n"
-            "from simcore.render import choose_variant\n"
+            "from simcore.render.irradiance import choose_variant\n"
             "try:\n"
             f"    choose_variant({request})\n"
             "except LLVMNotFoundError as exc:\n"
@@ -120,13 +121,13 @@ def test_bare_diode_reads_e_sun_cos_theta_exactly():
 
 
 def test_square_well_lit_fraction_matches_analytic_overlap():
-    # Oracle: simcore.aperture.WellAperture.lit_fraction, the closed-form overlap of the
+    # Oracle: simcore.shapes.aperture.WellAperture.lit_fraction, the closed-form overlap of the
     # diode with the opening shifted by h tan along each wall axis.
     # A rectangular well that shades partly from ~25 deg on (more partial cases than eq. 4.15's).
     ap = WellAperture(A, A, 1.6 * A, 1.4 * A, 1.5e-3)
     frame = diode_frame(np.array([0.6, 0.0, 0.8]))
     centre = np.array([0.05, 0.01, 0.1])
-    ds = DiodeSet(centre[None], frame[None], [ap.diode_x_m, ap.diode_y_m])
+    ds = DiodeSurfaces(centre[None], frame[None], [ap.diode_x_m, ap.diode_y_m])
     rend = Renderer(ds, _well_mesh(frame, centre, ap))
     d_diode = _directions_in_diode_frame(30, 25.0, 65.0, seed=3)
     sun = d_diode @ frame                          # diode frame -> body frame
@@ -153,7 +154,7 @@ def test_mm_aperture_still_shadows_with_the_earth_7000_km_away():
     ap = WellAperture(A, A, 1.6 * A, 1.4 * A, 1.5e-3)
     frame = diode_frame(np.array([0.0, 0.0, 1.0]))
     centre = np.array([0.0, 0.05, 0.1135])
-    ds = DiodeSet(centre[None], frame[None], [A, A])
+    ds = DiodeSurfaces(centre[None], frame[None], [A, A])
     rend = Renderer(ds, _well_mesh(frame, centre, ap), reflectivity=np.zeros((180, 288)))
     d = _directions_in_diode_frame(20, 25.0, 65.0, seed=5)
     earth = np.tile([0.0, 0.0, -7.0e6], (len(d), 1))     # Earth below, the Sun above: no eclipse
@@ -195,7 +196,7 @@ def test_aperture_split_is_exact_for_the_analytic_well_and_unbiased_otherwise():
     lit = true.lit_fraction(d)
     partial = (lit > 0) & (lit < 1)
     for hint in (true, wrong):
-        ds = DiodeSet(centre[None], frame[None], [A, A], apertures=[hint])
+        ds = DiodeSurfaces(centre[None], frame[None], [A, A], apertures=[hint])
         res = Renderer(ds, mesh).render(d @ frame, seed=13)
         got = res.direct_w_m2[:, 0] / (E_SUN_W_M2 * d[:, 2])
         se = res.direct_se_w_m2[:, 0] / (E_SUN_W_M2 * d[:, 2])
@@ -220,7 +221,7 @@ def test_shadow_of_a_plate_edge_matches_its_area(hint):
     centre = np.array([0.0, 0.0, 0.1])
     plate = np.array([[0.0, -0.025, H], [0.05, -0.025, H], [0.05, 0.025, H], [0.0, 0.025, H]]) + centre
     mesh = trimesh.Trimesh(plate, [[0, 1, 2], [0, 2, 3]], process=False)
-    ds = DiodeSet(centre[None], frame[None], [A, A], apertures=[WellAperture.bare()] if hint else None)
+    ds = DiodeSurfaces(centre[None], frame[None], [A, A], apertures=[WellAperture.bare()] if hint else None)
     rend = Renderer(ds, mesh)
     tan_u = np.linspace(-0.12, 0.12, 25)
     tan_v = np.linspace(0.1, -0.1, 25)
@@ -332,7 +333,7 @@ def test_albedo_tilted_diode_matches_direction_quadrature():
     sun = np.array([np.sin(np.radians(-50)), 0.0, np.cos(np.radians(-50))])
     c = np.array([0.0, 0.0, -H])
     expected = _earth_disc_quadrature(c, sun, rho, lambda d: np.clip(d @ nrm, 0, None), 1500)
-    rend = Renderer(DiodeSet(np.zeros((1, 3)), diode_frame(nrm)[None], [A, A]),
+    rend = Renderer(DiodeSurfaces(np.zeros((1, 3)), diode_frame(nrm)[None], [A, A]),
                     reflectivity=np.full((180, 288), rho))
     n = 6
     res = rend.render(np.tile(sun, (n, 1)), np.tile(c, (n, 1)), np.tile(np.eye(3), (n, 1, 1)), seed=21,
@@ -356,7 +357,7 @@ def test_albedo_through_a_well_matches_quadrature_with_the_analytic_aperture(hin
     c = np.array([0.0, 0.0, -H])
     expected = _earth_disc_quadrature(c, sun, rho, lambda d: ap.response(d @ frame.T), 1200)
     centre = np.array([0.0, 0.0, -0.12])
-    ds = DiodeSet(centre[None], frame[None], [A, A], apertures=[ap] if hint else None)
+    ds = DiodeSurfaces(centre[None], frame[None], [A, A], apertures=[ap] if hint else None)
     rend = Renderer(ds, _well_mesh(frame, centre, ap), reflectivity=np.full((180, 288), rho))
     n = 6
     res = rend.render(np.tile(sun, (n, 1)), np.tile(c, (n, 1)), np.tile(np.eye(3), (n, 1, 1)), seed=17,
@@ -397,7 +398,7 @@ def _scene_for_determinism():
     frame = diode_frame(np.array([0.6, 0.0, 0.8]))
     frames = np.stack([frame, diode_frame(np.array([0.0, 0.0, -1.0]))])
     pos = np.array([[0.05, 0.0, 0.05], [0.0, 0.0, -0.11]])
-    ds = DiodeSet(pos, frames, [A, A], apertures=[ap, WellAperture.bare()])
+    ds = DiodeSurfaces(pos, frames, [A, A], apertures=[ap, WellAperture.bare()])
     return ds, _well_mesh(frame, pos[0], ap)
 
 
@@ -461,7 +462,7 @@ def test_target_accuracy_is_met_or_the_cap_is_reached():
     raw = rend.render(sun, earth, rot, seed=3, direct_samples=256, albedo_samples=128)
     assert set(np.unique(raw.direct_samples)) <= {0, 256, 4 * 8 ** 2 + 4 * 4 ** 2}
     assert set(np.unique(raw.albedo_samples)) <= {0, 102 + 26}
-    plain = Renderer(DiodeSet(ds.positions_m, ds.frames, ds.sizes_m), mesh, reflectivity=np.full((180, 288), 0.3))
+    plain = Renderer(DiodeSurfaces(ds.positions_m, ds.frames, ds.sizes_m), mesh, reflectivity=np.full((180, 288), 0.3))
     raw = plain.render(sun, earth, rot, seed=3, direct_samples=256, albedo_samples=128)
     assert set(np.unique(raw.direct_samples)) <= {0, 256}
     assert set(np.unique(raw.albedo_samples)) <= {0, 128}
@@ -482,8 +483,8 @@ def test_bad_inputs_raise_teaching_errors():
     with pytest.raises(ValueError, match=r"4 m\^2"):
         rend.render([[0.0, 0.0, 1.0]], direct_samples=1000)
     with pytest.raises(ValueError, match="frames"):
-        DiodeSet(np.zeros((2, 3)), np.tile(np.eye(3), (3, 1, 1)), [A, A])
-    with pytest.raises(TypeError, match="DiodeSet"):
+        DiodeSurfaces(np.zeros((2, 3)), np.tile(np.eye(3), (3, 1, 1)), [A, A])
+    with pytest.raises(TypeError, match="DiodeSurfaces"):
         Renderer(np.zeros((1, 3)))
 
 
@@ -503,5 +504,5 @@ def test_functional_render_and_config_diodes():
     np.testing.assert_allclose(res.direct_w_m2, [[E_SUN_W_M2]], rtol=1e-7)
     config = pytest.importorskip("scenes.config")
     cfg = config.SatelliteConfig.load("tilt20_fov70")
-    ds = DiodeSet.from_config(cfg)
+    ds = DiodeSurfaces.from_config(cfg)
     assert ds.count == 14 and ds.apertures is not None

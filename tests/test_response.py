@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-import simcore  # noqa: F401  (Dr.Jit's libLLVM before drjit)
-from simcore.aperture import WellAperture
-from simcore.response import (NUMPY_OPS, CosineResponse, Eq415Response, ReflectionResponse, check_response,
+from simcore._llvm import import_drjit
+from simcore.shapes.aperture import WellAperture
+from simcore.radiometry.response import (NUMPY_OPS, CosineResponse, Eq415Response, ReflectionResponse, check_response,
                               kernel)
 
 
@@ -83,11 +83,11 @@ def test_aperture_response_against_brute_force(ap, rng):
 @pytest.mark.parametrize("resp", [CosineResponse(), ReflectionResponse(-0.25), ReflectionResponse(0.15),
                                   Eq415Response(70), WellAperture.design(75)])
 def test_kernel_forms_match_the_numpy_responses(resp, rng):
-    # The kernel form feeds the Dr.Jit path of simcore.analytic; it must be the same function.
-    import drjit as dr
+    # The kernel form feeds the Dr.Jit path of simcore.radiometry.analytic; it must be the same function.
+    dr = import_drjit()
     from drjit.llvm import Float64
 
-    from simcore.analytic import _DrJitOps
+    from simcore.radiometry.analytic import _DrJitOps
 
     d = rng.normal(size=(4000, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]

@@ -91,12 +91,12 @@ def test_corrupt_and_foreign_run_files_are_refused(tmp_path):
 def test_a_user_attitude_history_drives_the_study(tmp_path):
     # A history holding the body at a fixed 90 deg turn about GCRS z: body x must point along GCRS y at
     # every epoch (the quaternion (cos 45, 0, 0, sin 45) rotates x onto y).
-    from simcore.run import RunOptions, Study
+    from simcore.pipeline.run import RunOptions, PreparedRun
     csv = tmp_path / "att.csv"
     q = [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)]
     csv.write_text("t_s,qw,qx,qy,qz\n" + "".join(f"{t},{q[0]},{q[1]},{q[2]},{q[3]}\n" for t in (0.0, 100.0)))
-    study = Study(RunOptions(start="2016-07-02T00:45:00Z", duration_s=50, attitude_file=str(csv),
+    study = PreparedRun(RunOptions(start="2016-07-02T00:45:00Z", duration_s=50, attitude_file=str(csv),
                              output=str(tmp_path / "a.nc")))
     np.testing.assert_allclose(study.geometry.R_gcrs_from_body[:, :, 0], np.tile([0.0, 1.0, 0.0], (50, 1)), atol=1e-12)
     with pytest.raises(ValueError, match="outside|span"):
-        Study(RunOptions(duration_s=500, attitude_file=str(csv), output=str(tmp_path / "b.nc")))
+        PreparedRun(RunOptions(duration_s=500, attitude_file=str(csv), output=str(tmp_path / "b.nc")))

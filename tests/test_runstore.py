@@ -4,7 +4,7 @@ import os
 import numpy as np
 import pytest
 
-from simcore.runstore import ChunkStore, atomic_write, check_writable, chunk_ranges
+from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges
 
 
 def test_chunks_resume_and_concatenate(tmp_path):

@@ -1,4 +1,4 @@
-"""Satellite configurations (scenes.config), their meshes (scenes.geometry) and the Mitsuba picture."""
+"""Satellite configurations (scenes.config), their meshes (scenes.meshes) and the Mitsuba picture."""
 from importlib.resources import files
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 import trimesh
 
 from scenes.config import ConfigError, SatelliteConfig, list_configs
-from scenes.geometry import build_parts, build_satellite_mesh, diode_surfaces, export
-from simcore.aperture import WellAperture, diode_frame
+from scenes.meshes import build_parts, build_satellite_mesh, diode_surfaces, export
+from simcore.shapes.aperture import WellAperture, diode_frame
 
 SHIPPED = ["tilt0_fov90", "tilt20_fov70", "tilt20_fov75", "tilt25_fov70", "tilt25_fov75", "tilt30_fov70",
            "tilt30_fov75"]
@@ -210,7 +210,7 @@ def test_well_walls_along_frame_axes():
 
 @pytest.mark.parametrize("theta_deg, phi_deg", [(0, 0), (50, 0), (72, 0), (78, 90), (65, 45), (80, 30), (85, 0)])
 def test_well_ray_cast_matches_overlap_area(theta_deg, phi_deg):
-    # Oracle: the closed-form overlap of the aperture (simcore.aperture, thesis eq. 4.15 geometry);
+    # Oracle: the closed-form overlap of the aperture (simcore.shapes.aperture, thesis eq. 4.15 geometry);
     # the mesh is probed by casting rays from a grid of points on the diode through floor + well.
     cfg = SatelliteConfig.load("tilt25_fov70")
     parts = build_parts(cfg)
@@ -270,7 +270,8 @@ def test_picture_tiny(tmp_path):
 def test_earth_texture_orientation():
     # Oracle: the TOMS cell values at known places (data file, row 0 = south, column 0 = -179.375 deg);
     # a ray aimed at a cell centre must return exactly that cell's raw reflectivity.
-    import mitsuba as mi
+    from simcore._llvm import import_mitsuba
+    mi = import_mitsuba()
 
     from scenes.mitsuba_scene import PictureGeometry, build_scene, load_scene
     from simcore.constants import R_EARTH_MEAN_M

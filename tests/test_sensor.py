@@ -1,10 +1,10 @@
-"""Tests of the photodiode sensor chain (simcore.sensor) against the thesis' closed forms."""
+"""Tests of the photodiode sensor chain (simcore.sensor.chain) against the thesis' closed forms."""
 import dataclasses
 
 import numpy as np
 import pytest
 
-from simcore.sensor import DIODES, T_REF_K, DiodeType, SensorChain, misaligned_normals
+from simcore.sensor.chain import DIODES, T_REF_K, PhotodiodeSpec, SensorChain, misaligned_normals
 
 E_SUN = 1366.1            # thesis sec. 2.3.2, the solar constant the irradiance is computed with
 Q_E = 1.602176634e-19     # CODATA 2018 / SI 2019 exact elementary charge
@@ -154,7 +154,7 @@ def test_misuse_raises():
     with pytest.raises(ValueError, match="scale_errors"):
         SensorChain(scale_errors=[0.1, 0.2]).counts(np.zeros((1, 3)))
     with pytest.raises(ValueError, match="positive"):
-        DiodeType("x", -0.7, 1e-6, 100.0, 0.0, 0.0, 1e8)
+        PhotodiodeSpec("x", -0.7, 1e-6, 100.0, 0.0, 0.0, 1e8)
 
 
 def test_misaligned_normals_rayleigh_statistics():

@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 from pvlib import spa
 
-from simcore import sun
+from simcore.environment import sun
 from simcore.constants import AU_M
-from simcore.epochs import Epochs
+from simcore.environment.epochs import Epochs
 
 
 def _spa(epochs):
@@ -54,7 +54,7 @@ def year_2016():
     # with a leap second, and on such a day erfa reads a UTC Julian-date fraction as a share of
     # 86 401 s while SPA's unix time (and Epochs' calendar conversion) count 86 400 s, so the two
     # disagree by up to 1 s of time (13" of Earth rotation) that day - a time-scale convention,
-    # not a Sun-model difference (reported to the lead, simcore/epochs.py).
+    # not a Sun-model difference (reported to the lead, simcore/environment/epochs.py).
     return Epochs.range("2016-01-01T00:00:00Z", 365 * 86400, 3 * 3600 + 17)
 
 

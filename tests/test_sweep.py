@@ -4,8 +4,8 @@ import os
 import numpy as np
 import xarray as xr
 
-from simcore.run import RunOptions
-from simcore.sweep import sweep, sweep_points
+from simcore.pipeline.run import RunOptions
+from simcore.pipeline.sweep import sweep, sweep_points
 
 
 def test_sweep_of_eight_runs_on_two_local_workers(tmp_path):

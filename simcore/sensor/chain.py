@@ -47,7 +47,7 @@ C_F_FARAD = 1e-9               # feedback capacitor installed with the AD8617 (t
 
 
 @dataclass(frozen=True)
-class DiodeType:
+class PhotodiodeSpec:
     """A photodiode's data-sheet values used by the sensor chain (SI units)."""
 
     name: str
@@ -88,7 +88,7 @@ class DiodeType:
 # The dark current is the reverse-bias data-sheet value; in photovoltaic mode (V_A ~ 0, eq. 2.31)
 # it is far smaller, so this is a conservative upper value (2 nA is 0.002 LSB with R_F = 500 ohm).
 DIODES = {
-    "BPW34FS": DiodeType(
+    "BPW34FS": PhotodiodeSpec(
         name="BPW34FS",
         responsivity_a_w=0.7,              # [T] sec. 3.2.3 and eq. 4.18
         area_m2=BPW34_AREA_M2,             # [T] eq. 4.18, 7.02 mm^2
@@ -97,7 +97,7 @@ DIODES = {
         dark_current_a=2e-9,               # [D]
         shunt_resistance_ohm=100e6,        # [A]
     ),
-    "SFH2430": DiodeType(
+    "SFH2430": PhotodiodeSpec(
         name="SFH2430",
         responsivity_a_w=0.17,             # [T] sec. 3.2.3
         area_m2=BPW34_AREA_M2,             # [D] same package and chip size as the BPW34 (thesis 3.2.3)
@@ -106,7 +106,7 @@ DIODES = {
         dark_current_a=2e-9,               # [D]
         shunt_resistance_ohm=100e6,        # [A]
     ),
-    "BPW34FAS": DiodeType(
+    "BPW34FAS": PhotodiodeSpec(
         name="BPW34FAS",
         responsivity_a_w=0.65,             # [A] Si PIN near 880 nm with a daylight-cut filter
         area_m2=BPW34_AREA_M2,             # [D] BPW 34 chip
@@ -115,7 +115,7 @@ DIODES = {
         dark_current_a=2e-9,               # [D]
         shunt_resistance_ohm=100e6,        # [A]
     ),
-    "BPV23F": DiodeType(
+    "BPV23F": PhotodiodeSpec(
         name="BPV23F",
         responsivity_a_w=0.6,              # [A] Si PIN near its 950 nm peak
         area_m2=4.4e-6,                    # [D] Vishay BPV23F, 4.4 mm^2
@@ -162,8 +162,8 @@ class SensorChain:
 
     Parameters
     ----------
-    diode : str or DiodeType
-        A key of :data:`DIODES` or a :class:`DiodeType`.
+    diode : str or PhotodiodeSpec
+        A key of :data:`DIODES` or a :class:`PhotodiodeSpec`.
     r_f_ohm : float
         Transimpedance (feedback) resistance R_F (eq. 4.21; 500 ohm in the thesis).
     adc_bits : int
@@ -191,10 +191,10 @@ class SensorChain:
                  temperature_k=T_REF_K, noise=False, seed=None, scale_errors=None, dead=()):
         if isinstance(diode, str):
             if diode not in DIODES:
-                raise ValueError(f"unknown diode {diode!r}; choose one of {sorted(DIODES)} or pass a DiodeType")
+                raise ValueError(f"unknown diode {diode!r}; choose one of {sorted(DIODES)} or pass a PhotodiodeSpec")
             diode = DIODES[diode]
-        if not isinstance(diode, DiodeType):
-            raise TypeError(f"diode must be a name in {sorted(DIODES)} or a DiodeType, got {type(diode).__name__}")
+        if not isinstance(diode, PhotodiodeSpec):
+            raise TypeError(f"diode must be a name in {sorted(DIODES)} or a PhotodiodeSpec, got {type(diode).__name__}")
         self.diode = diode
         if not (np.isfinite(r_f_ohm) and r_f_ohm > 0):
             raise ValueError(f"r_f_ohm must be a positive resistance in ohm, got {r_f_ohm}")

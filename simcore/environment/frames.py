@@ -73,7 +73,7 @@ import erfa
 import numpy as np
 
 from simcore.constants import OMEGA_EARTH_RAD_S
-from simcore.epochs import Epochs
+from simcore.environment.epochs import Epochs
 
 PN_GRID_STEP_S = 3600.0      # coarse grid for the precession-nutation part
 _SECONDS_PER_DAY = 86400.0
@@ -300,7 +300,7 @@ def teme_to_all(r_teme_m, v_teme_m_s, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0
     """Return (r_gcrs_m, v_gcrs_m_s, r_itrs_m, v_itrs_m_s), each (N, 3), from a TEME state.
 
     One pass that shares the sidereal times between the two targets (used by
-    :meth:`simcore.orbit.Orbit.propagate`).
+    :meth:`simcore.environment.orbit.Orbit.propagate`).
     """
     epochs = _epochs(epochs)
     n = len(epochs)

@@ -15,10 +15,14 @@ import os
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
+
+from simcore.plots import plot_estimator_error, save_figure
+from simcore.studies.cross_map import evaluate_cross_map
 
 from estimators.metrics import hanning_mean_std
-from simcore.evaluate import run_errors
-from simcore.run import RunOptions, Study, execute, open_run
+from simcore.pipeline.evaluate import run_errors
+from simcore.pipeline.run import RunOptions, PreparedRun, execute, open_run
 
 CONFIGS = ("tilt0_fov90", "tilt20_fov70", "tilt20_fov75", "tilt25_fov70", "tilt25_fov75", "tilt30_fov70",
            "tilt30_fov75")
@@ -70,8 +74,6 @@ def summarise(errs, sunlit, t_s, period_s, window=181):
 
 def _figure_means(t_s, series, title, path, sunlit):
     """Hanning-mean |zenith error| of several configurations against time (thesis figs. 4.6-4.17)."""
-    from matplotlib.figure import Figure
-    from simcore.plots import save_figure
     fig = Figure(figsize=(11, 5.5))
     ax = fig.add_subplot()
     for label, z in series.items():
@@ -89,7 +91,6 @@ def _figure_means(t_s, series, title, path, sunlit):
 def reproduce(folder, *, span="day", page_folder=None, log=print, render=True, second_spin=0.5,
               cross_map=True, noise=True):
     """Render what is missing, evaluate everything and write the results page; return the results dict."""
-    from simcore.plots import plot_estimator_error
     page_folder = page_folder or os.path.join(folder, "page")
     os.makedirs(folder, exist_ok=True)
     os.makedirs(page_folder, exist_ok=True)
@@ -143,7 +144,6 @@ def reproduce(folder, *, span="day", page_folder=None, log=print, render=True, s
 def cross_map_rows(folder, *, span="day", config="tilt20_fov70", render=True, log=print):
     """Return the cross-map table of the on-board albedo estimator: truth rendered with CERES 2018 and
     TOMS 2005, on-board prediction from the other map (and the thesis estimators beside it)."""
-    from simcore.onboard import evaluate_cross_map
     truth, geometry = {}, None
     for m in ("toms2005", "ceres2018-all"):
         opts = run_options(config, folder, span=span, reflectivity=m)
@@ -152,7 +152,7 @@ def cross_map_rows(folder, *, span="day", config="tilt20_fov70", render=True, lo
         ds = ensure_run(opts, log=log)
         truth[m] = ds["irradiance"].sum("component").values
         if geometry is None:
-            geometry = Study(dataclasses.replace(opts)).geometry
+            geometry = PreparedRun(dataclasses.replace(opts)).geometry
     rows = evaluate_cross_map(config, truth_irradiance=truth, geometry=geometry,
                               truth_maps=("ceres2018-all", "toms2005"), onboard_maps=("toms2005", "ceres2018-all"),
                               dead=[0])

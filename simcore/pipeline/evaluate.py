@@ -6,18 +6,10 @@ estimator, sunlit, per orbit). Estimators only see measurements and normals.
 """
 import numpy as np
 
-import estimators as _est
+from estimators import ESTIMATORS, THESIS_ESTIMATORS
 from estimators.metrics import angle_error_deg, orbit_summary, zenith_azimuth_error_deg
-from simcore.sensor import DIODES, SensorChain
-
-# name -> (function, keyword arguments): the thesis' four (sec. 4.3, both Sun-Albedo-Sun starts).
-THESIS_ESTIMATORS = {
-    "pinv": (_est.pinv_estimate, {}),
-    "wls": (_est.wls_estimate, {}),
-    "albedo_sun": (_est.albedo_sun_estimate, {}),
-    "sun_albedo_sun_wls": (_est.sun_albedo_sun_estimate, {"init": "wls"}),
-    "sun_albedo_sun": (_est.sun_albedo_sun_estimate, {"init": "albedo_sun"}),
-}
+from simcore.environment.attitude import quat_to_matrix
+from simcore.sensor.chain import DIODES, SensorChain
 
 
 def measure(irradiance_w_m2, *, diode="BPW34FS", dead=(), noise=False, seed=0, **sensor_kw):
@@ -29,10 +21,10 @@ def measure(irradiance_w_m2, *, diode="BPW34FS", dead=(), noise=False, seed=0, *
 def run_estimators(e_p, normals, fov_deg, *, e_s0, live=None, which=None):
     """Return {name: (s_hat (N, 3), valid (N,))} for the thesis' estimators (or ``which`` of them)."""
     out = {}
-    for name, (fn, kw) in THESIS_ESTIMATORS.items():
+    for name in THESIS_ESTIMATORS:
         if which is not None and name not in which:
             continue
-        out[name] = fn(e_p, normals, fov_deg=fov_deg, e_s0=e_s0, live=live, **kw)
+        out[name] = ESTIMATORS[name](e_p, normals, fov_deg=fov_deg, e_s0=e_s0, live=live)
     return out
 
 
@@ -71,10 +63,9 @@ def error_table(errs, sunlit, orbit_index=None):
 
 
 def run_errors(ds, *, diode="BPW34FS", noise=False, seed=0, which=None, smart_select=False):
-    """Return (errs, sunlit, extras) for a run Dataset (:mod:`simcore.run`): rendered direct + albedo
+    """Return (errs, sunlit, extras) for a run Dataset (:mod:`simcore.pipeline.run`): rendered direct + albedo
     through the sensor chain into the thesis' estimators (plus ``smart_select`` for opposite diode pairs),
     errors against the true Sun vector (:func:`errors`); ``sunlit`` (N,) is the full-Sun mask."""
-    from simcore.attitude import quat_to_matrix
     irr = ds["irradiance"].sum("component").values
     live = ~ds["dead"].values.astype(bool)
     normals = ds["normal_body"].values
@@ -83,7 +74,7 @@ def run_errors(ds, *, diode="BPW34FS", noise=False, seed=0, which=None, smart_se
     e_p = measure(irr, diode=diode, dead=np.flatnonzero(~live), noise=noise, seed=seed)
     est = run_estimators(e_p, normals, fov, e_s0=e_s0, live=live, which=which)
     if smart_select:
-        est["smart_select"] = _est.smart_select_estimate(e_p, normals, fov_deg=fov, e_s0=e_s0, live=live)
+        est["smart_select"] = ESTIMATORS["smart_select"](e_p, normals, fov_deg=fov, e_s0=e_s0, live=live)
     R = quat_to_matrix(ds["q_gcrs_from_body"].values)
     sunlit = ds["illumination"].values >= 1.0
     return errors(est, ds["sun_dir_body"].values, R), sunlit, {"e_p": e_p, "estimates": est}

@@ -14,7 +14,7 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
 - ``well_k``: the hollow square well, straight walls ``mount.wall_m`` thick
   from the diode surface up to ``aperture.height_m``; its inner cross-section is
   the aperture's opening and its walls run along the diode frame's u and v axes
-  (:func:`simcore.aperture.diode_frame`). Absent for a bare diode (height 0).
+  (:func:`simcore.shapes.aperture.diode_frame`). Absent for a bare diode (height 0).
 - ``diode_k`` (only in :func:`build_parts` with ``include_diodes=True`` and in
   :func:`diode_surfaces`): the sensitive square, facing along the normal.
 

@@ -12,7 +12,7 @@ diode-plane points whose ray toward ``d`` hits the box is the projection
 along ``d`` of the part of the box in front of the diode plane, a convex
 polygon; it is clipped against the lit rectangle of the well (the diode
 square intersected with the opening shifted by ``-h (d_u, d_v)/d_n``, see
-:mod:`simcore.aperture`) and its area subtracted. For albedo the centre of
+:mod:`simcore.shapes.aperture`) and its area subtracted. For albedo the centre of
 the diode stands for the whole diode (a slab test per Earth cell), which is
 exact to first order for the straight shadow edges of a box.
 
@@ -48,7 +48,7 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def _convex_hull(points):
+def convex_hull(points):
     """Return the convex hull (counter-clockwise) of 2-D points, a list of (x, y) (Andrew's monotone chain)."""
     pts = sorted(set(points))
     if len(pts) <= 2:
@@ -117,7 +117,7 @@ def shadow_polygon(position_m, frame, d, half_m):
         h = _dot((y[0] - p[0], y[1] - p[1], y[2] - p[2]), n) / dn
         x = (y[0] - h * d[0] - p[0], y[1] - h * d[1] - p[1], y[2] - h * d[2] - p[2])
         out.append((_dot(x, u), _dot(x, v)))
-    return _convex_hull(out)
+    return convex_hull(out)
 
 
 def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):

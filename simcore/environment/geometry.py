@@ -8,18 +8,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcore import attitude as _attitude
-from simcore import eclipse, frames, sun
+from simcore.environment import attitude as _attitude
+from simcore.environment import eclipse, frames, sun
 from simcore.constants import AU_M, R_EARTH_MEAN_M
-from simcore.epochs import Epochs
-from simcore.orbit import Orbit
+from simcore.environment.epochs import Epochs
+from simcore.environment.orbit import Orbit
 
 DEFAULT_START = "2016-07-02T00:00:00Z"   # the thesis' simulation start (table 4.3)
 DEFAULT_STEP_S = 1.0
 
 
 @dataclass(frozen=True)
-class Geometry:
+class StudyGeometry:
     """Time-tagged geometry of a study, arrays with time leading (N, ...), SI units."""
 
     epochs: Epochs
@@ -81,10 +81,10 @@ class Geometry:
 
 def compute_geometry(orbit=None, epochs=None, attitude=None, *, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0,
                      earth_radius_m=R_EARTH_MEAN_M):
-    """Return the :class:`Geometry` of ``orbit`` at ``epochs`` with ``attitude``.
+    """Return the :class:`StudyGeometry` of ``orbit`` at ``epochs`` with ``attitude``.
 
     Defaults: the shipped ESTCube-1 TLE, one day from 2016-07-02T00:00Z at 1 s,
-    and the thesis' tumble (1.9 deg/s, see :func:`simcore.attitude.tumble`).
+    and the thesis' tumble (1.9 deg/s, see :func:`simcore.environment.attitude.tumble`).
     """
     orbit = Orbit.default() if orbit is None else orbit
     epochs = Epochs.range(DEFAULT_START, 86400, DEFAULT_STEP_S) if epochs is None else Epochs.from_any(epochs)
@@ -105,7 +105,7 @@ def compute_geometry(orbit=None, epochs=None, attitude=None, *, dut1_s=0.0, xp_r
     if ok.any():
         illum[ok] = eclipse.conical(state.r_gcrs_m[ok], r_sun_gcrs[ok], radius_m=earth_radius_m)
         lit[ok] = eclipse.cylindrical(state.r_gcrs_m[ok], r_sun_gcrs[ok], radius_m=earth_radius_m)
-    return Geometry(
+    return StudyGeometry(
         epochs=epochs, t_s=t_s,
         r_sat_gcrs_m=state.r_gcrs_m, v_sat_gcrs_m_s=state.v_gcrs_m_s, r_sat_ecef_m=state.r_ecef_m,
         r_sun_gcrs_m=r_sun_gcrs, r_sun_ecef_m=r_sun_ecef,
@@ -136,3 +136,11 @@ def eclipse_events(geometry):
         if a <= 1 and b == 2:
             events.append(("penumbra-exit", t[i + 1]))
     return events
+
+
+def one_orbit_geometry(*, step_s=10.0, start=None, orbit=None):
+    """Return the :class:`simcore.environment.geometry.StudyGeometry` of one orbital period (default ESTCube-1 from the thesis'
+    start, thesis tumble) at ``step_s``."""
+    orbit = Orbit.default() if orbit is None else orbit
+    period = orbital_period_s(orbit)
+    return compute_geometry(orbit, Epochs.range(DEFAULT_START if start is None else start, period, float(step_s)))

@@ -3,7 +3,7 @@
 :class:`Orbit` holds one two-line element set (TLE) and its ``sgp4.api.Satrec``;
 :meth:`Orbit.propagate` returns an :class:`OrbitState` with positions and
 velocities in TEME (SGP4's own frame), GCRS and ITRS (ECEF), see
-:mod:`simcore.frames` for the frame chain and its accuracy.
+:mod:`simcore.environment.frames` for the frame chain and its accuracy.
 
 Per-epoch problems are flagged, not raised: rows with a nonzero SGP4 error
 code (1-6, e.g. 6 = the orbit has decayed) are NaN, and ``stale`` marks
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from sgp4.api import SGP4_ERRORS, Satrec
 
-from simcore import frames
-from simcore.epochs import Epochs
+from simcore.environment import frames
+from simcore.environment.epochs import Epochs
 
 DEFAULT_TLE = "estcube1_2016-07-27.tle"
 MAX_SPAN_DAYS = 3650.0       # beyond this a TLE is meaningless: raise
@@ -229,7 +229,7 @@ class Orbit:
         """Return the :class:`OrbitState` at ``times`` (anything :meth:`Epochs.from_any` accepts).
 
         SGP4 via ``Satrec.sgp4_array``; TEME -> GCRS / ITRS via
-        :mod:`simcore.frames` with the Earth-orientation parameters ``dut1_s``
+        :mod:`simcore.environment.frames` with the Earth-orientation parameters ``dut1_s``
         (UT1 - UTC, s), ``xp_rad``, ``yp_rad`` (polar motion, rad). Rows with an
         SGP4 error are NaN (``error_code`` says why); ``stale`` flags epochs
         more than ``max_age_days`` from the TLE epoch. Raises ``ValueError`` for

@@ -29,11 +29,24 @@ from simcore.constants import BPW34_AREA_M2, EQ415_CUTOFF_COS
 EQ415_CUTOFF_DEG = float(np.degrees(np.arccos(EQ415_CUTOFF_COS)))
 
 
-def _overlap_1d(half_diode, half_open, shift):
-    """Return the overlap length of [-a, a] with [-w - shift, w - shift]."""
-    lo = np.maximum(-half_diode, -half_open - shift)
-    hi = np.minimum(half_diode, half_open - shift)
-    return np.clip(hi - lo, 0.0, None)
+def lit_rectangle(half_diode_x, half_diode_y, half_open_x, half_open_y, height, du, dv, dn, *,
+                  maximum=np.maximum, minimum=np.minimum, where=np.where):
+    """Return (x0, x1, y0, y1, lit) for directions with diode-frame components (du, dv, dn): the
+    rectangle of the diode (fractions of its sides, centred, so within [-1/2, 1/2]) whose rays
+    toward the direction leave through the well's opening (the opening shifted by -h tan along
+    each wall axis), and its area fraction, the lit fraction (0 where dn <= 0).
+
+    Array-library neutral: numpy by default; the renderer passes Dr.Jit's maximum, minimum and
+    select, so the analytic model and the renderer share this one geometry.
+    """
+    inv_n = 1.0 / maximum(dn, 1e-12)
+    sx, sy = height * du * inv_n, height * dv * inv_n
+    x0 = maximum(-half_diode_x, -half_open_x - sx) / (2.0 * half_diode_x)
+    x1 = minimum(half_diode_x, half_open_x - sx) / (2.0 * half_diode_x)
+    y0 = maximum(-half_diode_y, -half_open_y - sy) / (2.0 * half_diode_y)
+    y1 = minimum(half_diode_y, half_open_y - sy) / (2.0 * half_diode_y)
+    lit = where(dn > 0, maximum(x1 - x0, 0.0) * maximum(y1 - y0, 0.0), 0.0)
+    return x0, x1, y0, y1, lit
 
 
 @dataclass(frozen=True)
@@ -85,14 +98,9 @@ class WellAperture:
         """Return the lit fraction of the diode (0..1) for unit directions ``d_diode`` (..., 3)
         towards the source, in the diode frame (u, v, n)."""
         d = np.asarray(d_diode, dtype=float)
-        dn = d[..., 2]
-        front = dn > 0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            tx = np.where(front, d[..., 0] / np.where(front, dn, 1.0), 0.0)
-            ty = np.where(front, d[..., 1] / np.where(front, dn, 1.0), 0.0)
-        fx = _overlap_1d(self.diode_x_m / 2, self.opening_x_m / 2, self.height_m * tx) / self.diode_x_m
-        fy = _overlap_1d(self.diode_y_m / 2, self.opening_y_m / 2, self.height_m * ty) / self.diode_y_m
-        return np.where(front, fx * fy, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            return lit_rectangle(self.diode_x_m / 2, self.diode_y_m / 2, self.opening_x_m / 2,
+                                 self.opening_y_m / 2, self.height_m, d[..., 0], d[..., 1], d[..., 2])[4]
 
     def response(self, d_diode):
         """Return the angular response (lit fraction x cos incidence) for directions (..., 3)

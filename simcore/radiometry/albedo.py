@@ -1,7 +1,7 @@
 """Earth albedo at the satellite: the Bhanderi cell model, physical and toolbox-exact.
 
 The Earth is a sphere divided into the cells of a reflectivity map
-(:mod:`simcore.maps`). Each cell c (centre p_c, outward normal n_c, area A_c,
+(:mod:`simcore.environment.maps`). Each cell c (centre p_c, outward normal n_c, area A_c,
 reflectivity rho_c) is a Lambertian reflector; at the satellite it gives the
 irradiance (SPEC sec. 3; thesis sec. 2.3.4 and 4.1.5, Bhanderi & Bak 2005)::
 
@@ -75,7 +75,7 @@ import math
 import numpy as np
 
 from simcore.constants import AU_M, E_SUN_TOOLBOX_W_M2, E_SUN_W_M2
-from simcore.maps import ReflectivityMap, as_map
+from simcore.environment.maps import ReflectivityMap, as_map
 
 TOOLBOX_EARTH_RADIUS_M = 6371.01e3   # albedo.m, earthfov.m, cellarea.m: CONST.EMR
 
@@ -87,7 +87,7 @@ def _vector(name, value):
         v = v.reshape(3)                           # row or column vectors, as the toolbox accepts
     if v.shape != (3,):
         raise ValueError(f"{name} must be one ECEF position of shape (3,) in metres, got shape {v.shape}; "
-                         "for many epochs use simcore.analytic.diode_irradiance")
+                         "for many epochs use simcore.radiometry.analytic.diode_irradiance")
     if not np.all(np.isfinite(v)):
         raise ValueError(f"{name} has non-finite components {v.tolist()}; give a finite ECEF position in metres")
     return v
@@ -99,7 +99,7 @@ def albedo_cells(sat_ecef_m, sun_ecef_m, reflectivity=None, *, toolbox_compatibl
 
     ``sat_ecef_m``, ``sun_ecef_m``: geocentric positions (3,), metres, ECEF.
     ``reflectivity``: None (the shipped TOMS 2005 annual mean), a
-    :class:`~simcore.maps.ReflectivityMap`, or an (n_lat, n_lon) array on the
+    :class:`~simcore.environment.maps.ReflectivityMap`, or an (n_lat, n_lon) array on the
     default global south-first grid. The result has the map's layout.
 
     Physical mode (default): true Sun direction, ``e_sun_w_m2`` (default
@@ -112,7 +112,7 @@ def albedo_cells(sat_ecef_m, sun_ecef_m, reflectivity=None, *, toolbox_compatibl
     sun = _vector("sun_ecef_m", sun_ecef_m)
     if not np.any(sun != 0):
         raise ValueError("sun_ecef_m is the zero vector (the Sun at the Earth's centre); give the geocentric "
-                         "Sun position in metres, e.g. from simcore.sun")
+                         "Sun position in metres, e.g. from simcore.environment.sun")
     if toolbox_compatible:
         if e_sun_w_m2 is not None or distance_scaling:
             raise ValueError("toolbox_compatible=True fixes E_sun at 1366.9 W/m^2 with no distance scaling, as the "
@@ -150,7 +150,7 @@ def check_geometry(r_sat_m, r_sun_m, radius_m):
     sun = np.linalg.norm(r_sun_m, axis=-1)
     if np.any(sun <= radius_m):
         raise ValueError(f"the Sun position has |r_sun| = {np.min(sun):.6g} m, not outside the Earth; give the "
-                         "geocentric Sun position in metres (not a unit vector), e.g. from simcore.sun")
+                         "geocentric Sun position in metres (not a unit vector), e.g. from simcore.environment.sun")
 
 
 def sun_irradiance_w_m2(r_sun_m, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False):

@@ -1,7 +1,7 @@
 """The main job: render diode irradiance along an orbit, check it, store it.
 
 :func:`execute` renders the study in chunks of epochs, stores every finished
-chunk crash-safely (:mod:`simcore.runstore`), computes the analytic model
+chunk crash-safely (:mod:`simcore.pipeline.store`), computes the analytic model
 beside each chunk and, once all are done, writes one self-describing xarray
 Dataset (netCDF) with the check's verdict. Killed and started again with the
 same options it continues from its last finished chunk and ends with exactly
@@ -18,15 +18,24 @@ import sys
 from dataclasses import dataclass
 
 import numpy as np
+import xarray as xr
 
-import simcore
-from simcore import attitude as _attitude
-from simcore import check as _check
+from scenes.config import SatelliteConfig
+from scenes.meshes import build_satellite_mesh
+from simcore.environment.maps import ReflectivityMap
+from simcore.environment.orbit import Orbit
+from simcore.radiometry.analytic import BodyBox, diode_irradiance
+from simcore.render.irradiance import DiodeSurfaces, Renderer, choose_variant
+
+from simcore import _llvm
+from simcore._version import __version__
+from simcore.environment import attitude as _attitude
+from simcore.pipeline import check as _check
 from simcore.constants import E_SUN_W_M2, R_SUN_M
-from simcore.epochs import Epochs
-from simcore.maps import named_map
-from simcore.runstore import ChunkStore, atomic_write, check_writable, chunk_ranges
-from simcore.study import DEFAULT_START, compute_geometry, orbital_period_s
+from simcore.environment.epochs import Epochs
+from simcore.environment.maps import named_map
+from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges
+from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
 
 CHECK_REFINE = 3  # the analytic reference for the albedo check uses cells refined 3 x 3
 
@@ -71,12 +80,11 @@ class RunOptions:
             if v and os.path.isfile(v):
                 with open(v, "rb") as f:
                     d[k + "_sha256"] = hashlib.sha256(f.read()).hexdigest()
-        d["sunsim_version"] = simcore.__version__
+        d["sunsim_version"] = __version__
         return d
 
 
 def _refined(m, factor):
-    from simcore.maps import ReflectivityMap
     v = np.repeat(np.repeat(m.values, factor, axis=0), factor, axis=1)
     lat = np.linspace(m.lat_edges_deg[0], m.lat_edges_deg[-1], v.shape[0] + 1)
     lon = np.linspace(m.lon_edges_deg[0], m.lon_edges_deg[-1], v.shape[1] + 1)
@@ -86,7 +94,6 @@ def _refined(m, factor):
 
 def study_geometry(opts):
     """Return (orbit, attitude, geometry) of the orbit, time span and attitude that ``opts`` describe."""
-    from simcore.orbit import Orbit
     if opts.step_s is None or not opts.step_s > 0:
         raise ValueError(f"--step must be a positive number of seconds, got {opts.step_s}")
     orbit = Orbit.default() if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
@@ -102,11 +109,10 @@ def study_geometry(opts):
     return orbit, attitude, compute_geometry(orbit, epochs, attitude)
 
 
-class Study:
+class PreparedRun:
     """A prepared run: configuration, geometry, scene and maps, ready to render chunks."""
 
     def __init__(self, opts):
-        from scenes.config import SatelliteConfig
         self.opts = opts
         self.config = SatelliteConfig.load(opts.config, dead=list(opts.dead),
                                            extra_flat_diodes=True if opts.extra_flat_diodes else None)
@@ -128,10 +134,8 @@ class Study:
     @property
     def renderer(self):
         if self._renderer is None:
-            from scenes.geometry import build_satellite_mesh
-            from simcore.render import DiodeSet, Renderer
             self._renderer = Renderer(
-                DiodeSet.from_config(self.config), build_satellite_mesh(self.config),
+                DiodeSurfaces.from_config(self.config), build_satellite_mesh(self.config),
                 reflectivity=self.map.values, lon_west_deg=float(self.map.lon_edges_deg[0]),
                 sun_angular_radius_rad=self.sun_angular_radius_rad, variant=self.opts.variant)
         return self._renderer
@@ -141,7 +145,6 @@ class Study:
         return g.sun_distance_scale[sl] if self.opts.distance_scaling else np.ones(sl.stop - sl.start)
 
     def analytic(self, sl, reflectivity_map, direct=True):
-        from simcore.analytic import BodyBox, diode_irradiance
         g = self.geometry
         return diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
                                 self.config.frames, self.config.apertures, map=reflectivity_map,
@@ -172,18 +175,16 @@ class Study:
 
 
 def _versions():
-    import drjit
-    import mitsuba
+    drjit, mitsuba = _llvm.import_drjit(), _llvm.import_mitsuba()
     import sgp4
     import erfa
-    return {"sunsim": simcore.__version__, "python": platform.python_version(), "numpy": np.__version__,
+    return {"sunsim": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "mitsuba": mitsuba.__version__, "drjit": drjit.__version__, "sgp4": sgp4.__version__,
             "pyerfa": erfa.__version__}
 
 
 def build_dataset(study, data, variant):
     """Return the run's xarray Dataset from the concatenated chunk arrays."""
-    import xarray as xr
     o, g, cfg = study.opts, study.geometry, study.config
     n, k = data["rendered"].shape[:2]
     bound = _check.discretisation_bound(data["analytic"][..., 1], data["analytic_albedo_refined"], CHECK_REFINE)
@@ -268,7 +269,7 @@ def execute(opts, *, progress=None, log=None):
     check_writable(opts.output)
     if os.path.exists(opts.output):
         raise FileExistsError(f"{opts.output} exists already; choose another --output or delete it")
-    study = Study(opts)
+    study = PreparedRun(opts)
     store = ChunkStore(opts.output, opts.spec()).open()
     ranges = chunk_ranges(len(study.epochs), opts.chunk_epochs)
     done = set(store.done())
@@ -285,7 +286,6 @@ def execute(opts, *, progress=None, log=None):
     finally:
         bar.close()
     data = store.load_all(len(study.epochs))
-    from simcore.render import choose_variant
     variant = study._renderer.variant if study._renderer is not None else choose_variant(opts.variant)
     ds, report = build_dataset(study, data, variant)
 
@@ -302,7 +302,6 @@ REQUIRED_VARIABLES = ("irradiance", "irradiance_se", "analytic", "analytic_refer
 
 def open_run(path):
     """Return the Dataset of a finished run file, or raise ValueError saying why it is not one."""
-    import xarray as xr
     if not os.path.exists(path):
         raise FileNotFoundError(f"no run file at {path}")
     if os.path.isdir(path):
@@ -346,7 +345,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     """Recompute a run file's analytic model and check with this version of sunsim (the rendered numbers
     are kept); rewrite the file atomically and return the new check report."""
     ds = open_run(path)
-    study = Study(options_of(ds, path))
+    study = PreparedRun(options_of(ds, path))
     n = len(study.epochs)
     if n != ds.sizes["time"]:
         raise ValueError(f"{path}: its options give {n} epochs but it holds {ds.sizes['time']}; "

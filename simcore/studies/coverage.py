@@ -9,7 +9,10 @@ show lines of red pixels on the panel planes). Each pixel is coloured red
 (<= 2 live diodes see it), yellow (exactly 3) or green (>= 4).
 """
 
+import healpy as hp
 import numpy as np
+
+from simcore.plots import plot_coverage_map
 
 NSIDE = 16
 FOV_MARGIN_DEG = 0.01
@@ -46,7 +49,7 @@ def _normals_fov_dead(config_or_normals, fov_deg, dead):
 
 def pixel_directions(nside=NSIDE):
     """Return the HEALPix pixel centres (12 nside^2, 3), unit vectors in the body frame (RING order)."""
-    import healpy as hp
+
 
     return np.array(hp.pix2vec(nside, np.arange(hp.nside2npix(nside)))).T
 
@@ -84,7 +87,6 @@ def coverage_fractions(config_or_normals, fov_deg=None, dead=(), nside=NSIDE):
 def plot_coverage(config_or_normals, path, fov_deg=None, dead=(), nside=NSIDE, title=None):
     """Write a Mollweide map of the coverage classes (body frame, pole = body z; PNG or PDF by suffix)
     and return its path. Diode normals are marked: live ones with their index, dead ones as crosses."""
-    from simcore.plots import plot_coverage_map
     normals, fov, live = _normals_fov_dead(config_or_normals, fov_deg, dead)
     counts = coverage_map(config_or_normals, fov_deg, dead, nside)
     if title is None:

@@ -8,11 +8,11 @@ The reference the renderer is checked against. For each epoch n and diode k
     albedo[n, k] = sum_c E_c(n) * A_k(F_k R^T e_c(n))
 
 with s_n the unit vector from the satellite to the Sun, lit[n] the eclipse
-factor (:mod:`simcore.eclipse`; the thesis' cylinder by default, sec. 4.1.4),
-E_c the Bhanderi cell irradiance of :mod:`simcore.albedo` (physical mode),
+factor (:mod:`simcore.environment.eclipse`; the thesis' cylinder by default, sec. 4.1.4),
+E_c the Bhanderi cell irradiance of :mod:`simcore.radiometry.albedo` (physical mode),
 e_c the unit vector from the satellite to cell c and A_k the diode's angular
-response (:mod:`simcore.response`: cosine, eq. 2.32, eq. 4.15, or the well
-aperture of :mod:`simcore.aperture`). The eclipse dims the direct Sun only;
+response (:mod:`simcore.radiometry.response`: cosine, eq. 2.32, eq. 4.15, or the well
+aperture of :mod:`simcore.shapes.aperture`). The eclipse dims the direct Sun only;
 the albedo needs no factor: from inside the shadow cylinder no sunlit cell
 centre is visible (its edge is the horizon ray grazing the terminator), and
 in a penumbra the visible sunlit cells do light the satellite.
@@ -32,18 +32,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcore import eclipse as _eclipse
-from simcore import response as _resp
-from simcore.albedo import check_geometry, sun_irradiance_w_m2
+from scenes.config import panel_axes
+
+from simcore import _llvm
+from simcore.environment import eclipse as _eclipse
+from simcore.radiometry import response as _resp
+from simcore.radiometry.albedo import check_geometry, sun_irradiance_w_m2
 from simcore.constants import E_SUN_W_M2, R_SUN_M
-from simcore.maps import as_map
-from simcore.occlusion import box_hit, direct_visibility
+from simcore.environment.maps import as_map
+from simcore.shapes.occlusion import box_hit, direct_visibility
 
 _TWO_PI = 2.0 * np.pi
 
 
 @dataclass(frozen=True)
-class DiodeIrradiance:
+class AnalyticIrradiance:
     """Irradiance on each diode, W/m^2 on its sensitive area: direct Sun and Earth albedo, (N, K) each."""
 
     direct_w_m2: np.ndarray
@@ -95,7 +98,7 @@ def _frames(value):
         F = F[None]
     if F.ndim != 3 or F.shape[1:] != (3, 3) or F.shape[0] == 0:
         raise ValueError(f"diode_frames_body must have shape (K, 3, 3) (rows u, v, n of each diode, "
-                         f"see simcore.aperture.diode_frame); got {F.shape}")
+                         f"see simcore.shapes.aperture.diode_frame); got {F.shape}")
     if not np.all(np.isfinite(F)):
         raise ValueError("diode_frames_body has non-finite entries")
     err = np.abs(np.einsum("kij,klj->kil", F, F) - np.eye(3)).max()
@@ -230,7 +233,7 @@ class _DrJitOps:
 
 def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, from one Dr.Jit LLVM kernel."""
-    import drjit as dr  # simcore (imported above) has pointed Dr.Jit at a working libLLVM
+    dr = _llvm.import_drjit()
     from drjit.llvm import Float, Float64, UInt32
 
     F = Float if precision == "single" else Float64
@@ -331,7 +334,6 @@ class BodyBox:
     @classmethod
     def from_config(cls, config):
         """Return the body box of a ``scenes.config.SatelliteConfig``."""
-        from scenes.config import panel_axes
         return cls(tuple(float(x) / 2 for x in config.body.size_m), np.asarray(config.positions_m, float),
                    np.array([panel_axes(d.panel)[0] for d in config.diodes], float))
 
@@ -439,20 +441,20 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
                      map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
                      albedo=True, backend="auto", precision="single", batch_epochs=4096, body=None,
                      sun_angular_radius_rad=0.0, direct=True):
-    """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`DiodeIrradiance`.
+    """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`AnalyticIrradiance`.
 
     ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
     ``e_sun_w_m2``: solar constant, times (1 AU / distance)^2 when ``distance_scaling``;
     ``R_ecef_from_body``: (N, 3, 3) (or (3, 3)); ``diode_frames_body``: (K, 3, 3),
     rows (u, v, n) of each diode in the body frame; ``responses``: one response
-    for all diodes or K of them (:mod:`simcore.response`,
-    :class:`simcore.aperture.WellAperture`). ``map``: reflectivity map (None:
+    for all diodes or K of them (:mod:`simcore.radiometry.response`,
+    :class:`simcore.shapes.aperture.WellAperture`). ``map``: reflectivity map (None:
     TOMS 2005). ``eclipse``: 'cylindrical' (thesis sec. 4.1.4), 'conical'
     (penumbra) or None; it dims the direct Sun only. ``albedo=False`` skips
     the Earth. ``backend``: 'drjit' (LLVM kernel, ``precision`` 'single' or
     'double'), 'numpy' (float64, any response object) or 'auto' (drjit when
     every response has a kernel form). ``body``: a :class:`BodyBox`, the
-    satellite body as an occluder (:mod:`simcore.occlusion`): exact for the
+    satellite body as an occluder (:mod:`simcore.shapes.occlusion`): exact for the
     direct Sun (needs well apertures as responses), the diode centre for albedo.
     ``sun_angular_radius_rad``: > 0 averages the direct response over the solar
     disc (37 equal-area points), as a renderer with a finite Sun sees it.
@@ -517,4 +519,4 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
             else:
                 alb[sl] = _albedo_numpy(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl, body)
         alb *= (e_sun / np.pi)[:, None]
-    return DiodeIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit)
+    return AnalyticIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit)

@@ -1,6 +1,6 @@
 """Parameter sweeps on Dask: configurations x start dates x spin rates x seeds.
 
-Every point of the sweep is an ordinary resumable run (:mod:`simcore.run`)
+Every point of the sweep is an ordinary resumable run (:mod:`simcore.pipeline.run`)
 writing its own file under ``<folder>/runs/``; Dask only schedules them. A
 local cluster is started by default; give a scheduler address to scale out
 (the workers need sunsim installed and the sweep folder on a shared file
@@ -16,9 +16,13 @@ import json
 import os
 
 import numpy as np
+import xarray as xr
 
-from simcore.run import execute, open_run
-from simcore.runstore import atomic_write, spec_digest
+from scenes.config import SatelliteConfig
+from simcore.environment.epochs import Epochs
+
+from simcore.pipeline.run import execute, open_run
+from simcore.pipeline.store import atomic_write, spec_digest
 
 
 def sweep_points(base, configs, starts, spin_rates, seeds, folder):
@@ -66,7 +70,6 @@ def run_sweep(points, *, scheduler=None, workers=2, log=print):
 
 def combine(points, out_path):
     """Write the sweep's runs as one Dataset with a ``run`` dimension to ``out_path``; return it."""
-    import xarray as xr
     runs = [open_run(p.output) for p in points]
     k_max = max(r.sizes["diode"] for r in runs)
     n_max = max(r.sizes["time"] for r in runs)
@@ -106,8 +109,6 @@ def sweep(base, configs, starts, spin_rates, seeds, folder, *, scheduler=None, w
     for name, values in (("configs", configs), ("starts", starts), ("spin rates", spin_rates), ("seeds", seeds)):
         if not values:
             raise ValueError(f"a sweep needs at least one value for {name}")
-    from scenes.config import SatelliteConfig
-    from simcore.epochs import Epochs
     for c in configs:          # fail here, with the user's words, rather than inside a worker
         SatelliteConfig.load(c)
     Epochs.from_any(list(starts))

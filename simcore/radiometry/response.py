@@ -2,7 +2,7 @@
 
 Every response is a small object with ``response(d_diode)``: for unit
 directions towards the source, ``d_diode`` (..., 3) in the diode frame
-(u, v, n) of :func:`simcore.aperture.diode_frame`, it returns the factor
+(u, v, n) of :func:`simcore.shapes.aperture.diode_frame`, it returns the factor
 (..., ) that turns the irradiance normal to the rays into the irradiance on
 the diode (W/m^2 on its sensitive area). A bare ideal diode gives cos(theta).
 
@@ -10,19 +10,19 @@ the diode (W/m^2 on its sensitive area). A bare ideal diode gives cos(theta).
 * :class:`ReflectionResponse` -- thesis eq. 2.32 (Ortega et al. 2010), the
   package's reflection losses ``I = (I_max - I_0) cos(theta) + I_0``.
 * :class:`Eq415Response` -- thesis eq. 4.15, the linear FOV cut-off.
-* :class:`simcore.aperture.WellAperture` -- the real aperture: the exact
+* :class:`simcore.shapes.aperture.WellAperture` -- the real aperture: the exact
   overlap of the diode with the well's opening projected along ``d``, times
   cos(theta) -- the geometry the renderer traces. Used as it is.
 
 Each response also has a kernel form (:func:`kernel`) written with generic
-``maximum/minimum/where`` so that :mod:`simcore.analytic` can evaluate it
+``maximum/minimum/where`` so that :mod:`simcore.radiometry.analytic` can evaluate it
 on numpy or Dr.Jit arrays; the tests check the two forms agree.
 """
 from dataclasses import dataclass
 
 import numpy as np
 
-from simcore.aperture import WellAperture
+from simcore.shapes.aperture import WellAperture
 from simcore.constants import EQ415_CUTOFF_COS
 
 
@@ -154,7 +154,7 @@ def kernel(resp):
     if hasattr(resp, "kernel"):
         return resp.kernel
     raise TypeError(f"{type(resp).__name__} has no kernel form; use CosineResponse, ReflectionResponse, "
-                    "Eq415Response or simcore.aperture.WellAperture (or any object with "
+                    "Eq415Response or simcore.shapes.aperture.WellAperture (or any object with "
                     "response(d_diode) together with backend='numpy')")
 
 
@@ -163,5 +163,5 @@ def check_response(resp):
     if not callable(getattr(resp, "response", None)):
         raise TypeError(f"an angular response needs a response(d_diode) method; got {type(resp).__name__}. "
                         "Use CosineResponse(), ReflectionResponse(i0_ratio), Eq415Response(fov_deg) or "
-                        "simcore.aperture.WellAperture.design(fov_deg)")
+                        "simcore.shapes.aperture.WellAperture.design(fov_deg)")
     return resp

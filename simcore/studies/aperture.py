@@ -4,22 +4,22 @@ self-shadowing and a height x tilt x FOV sweep.
 What each part answers (the models it compares):
 
 * :func:`traced_black_response` -- the response of one diode in its well with black
-  walls, ray traced by :class:`simcore.render.Renderer` (the floor and well meshes of
-  :func:`scenes.geometry.mount_meshes`), for any set of directions; compared with the
-  analytic overlap (:meth:`simcore.aperture.WellAperture.response`) and with thesis
-  eq. 4.15 (:class:`simcore.response.Eq415Response`) by :func:`angular_cuts`,
+  walls, ray traced by :class:`simcore.render.irradiance.Renderer` (the floor and well meshes of
+  :func:`scenes.meshes.mount_meshes`), for any set of directions; compared with the
+  analytic overlap (:meth:`simcore.shapes.aperture.WellAperture.response`) and with thesis
+  eq. 4.15 (:class:`simcore.radiometry.response.Eq415Response`) by :func:`angular_cuts`,
   :func:`response_map` and :func:`response_angles` (the 50 % / 1 % angles).
 * :func:`design_aperture` -- opening and height from a target FOV, cut-off, diode area
   and height limit.
-* :mod:`simcore.walls` -- walls with a BSDF (matte black, bare aluminium, a user
+* :mod:`simcore.render.walls` -- walls with a BSDF (matte black, bare aluminium, a user
   value); :func:`wall_albedo_effect` puts the tabulated response into the albedo sum
-  of :func:`simcore.analytic.diode_irradiance` along an orbit.
+  of :func:`simcore.radiometry.analytic.diode_irradiance` along an orbit.
 * :func:`self_shadowing` -- per diode, the part of its field of view that the body,
   the ramps and the neighbouring mounts shadow (traced with the full satellite mesh)
   against its own well alone.
 * :func:`sweep_apertures` -- well height x tilt x FOV -> coverage (green fraction),
   albedo fraction seen and estimator errors over one orbit; :func:`run_aperture_sweep`
-  writes the table and plots (the command-line entry point).
+  writes the table and plots (``sunsim aperture-sweep``).
 
 Where eq. 4.15 and the real well differ: eq. 4.15 is a function of the incidence
 angle only, ``A = C (C - c0)/(cos FOV - c0)`` between FOV and the 83.1 deg cut-off
@@ -32,12 +32,28 @@ stays fully lit up to ``atan(sqrt 2 tan FOV)`` (79.2 deg for FOV 75) and light r
 well everywhere between FOV and cut-off: by up to 0.034 of normal incidence on the wall axis and
 0.097 on the diagonal (FOV 75, near 79 deg), and zero on the diagonal where the diode still sees.
 """
+import csv
 from dataclasses import dataclass, field
+from pathlib import Path
 
+import healpy as hp
 import numpy as np
+import trimesh
 
-from simcore.aperture import EQ415_CUTOFF_DEG, WellAperture
+from scenes.config import LAYOUT_DEFAULTS, ConfigError, SatelliteConfig, expand_layout, list_configs
+from scenes.meshes import build_satellite_mesh, mount_meshes
 from simcore.constants import BPW34_AREA_M2
+from simcore.environment.geometry import one_orbit_geometry
+from simcore.pipeline.evaluate import error_table, errors, measure, run_estimators
+from simcore.plots import plot_sweep
+from simcore.radiometry.analytic import BodyBox, diode_irradiance
+from simcore.radiometry.response import Eq415Response
+from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.render.walls import TabulatedResponse, WallMaterial, trace_well
+from simcore.sensor.chain import DIODES
+from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture
+from simcore.shapes.occlusion import direct_visibility
+from simcore.studies.coverage import CLASSES, coverage_classes, coverage_fractions, pixel_directions
 
 MM = 1e-3
 DEFAULT_LEVELS = (0.5, 0.01)
@@ -56,7 +72,6 @@ def cut_directions(theta_deg, phi_deg):
 def healpix_directions(nside=16):
     """Return HEALPix pixel centres (12 nside^2, 3) (RING order), unit vectors; with the diode frame
     as the coordinate frame the pole is the diode normal."""
-    import healpy as hp
     return np.array(hp.pix2vec(int(nside), np.arange(hp.nside2npix(int(nside))))).T
 
 
@@ -65,12 +80,11 @@ def healpix_directions(nside=16):
 def well_config(aperture):
     """Return a one-diode :class:`scenes.config.SatelliteConfig` holding ``aperture`` flat on the +z panel
     (its diode frame is the body frame: u = x, v = y, n = z). The diode must be the square BPW34."""
-    from scenes.config import SatelliteConfig
     side = float(np.sqrt(BPW34_AREA_M2))
     if not (np.isclose(aperture.diode_x_m, side) and np.isclose(aperture.diode_y_m, side)):
         raise ValueError("the traced well uses the configuration format, whose diode is the square BPW34 "
                          f"({side / MM:.3f} mm); got {aperture.diode_x_m / MM:.3f} x {aperture.diode_y_m / MM:.3f} mm. "
-                         "Use simcore.walls.trace_well for other diodes")
+                         "Use simcore.render.walls.trace_well for other diodes")
     well = {"height_mm": aperture.height_m / MM, "opening_mm": [aperture.opening_x_m / MM, aperture.opening_y_m / MM]}
     return SatelliteConfig.from_dict({"name": "single_well", "diode": [
         {"name": "well", "panel": "+z", "normal": [0.0, 0.0, 1.0], "at_mm": [0.0, 0.0], "well": well}]})
@@ -78,21 +92,18 @@ def well_config(aperture):
 
 def traced_black_response(aperture, d_diode, *, samples=4096, seed=0, control_variate=False, variant=None):
     """Return (response (M,), standard error (M,)): the diode's response in its black-walled well for
-    unit directions ``d_diode`` (M, 3) (diode frame), ray traced by :class:`simcore.render.Renderer`
-    against the well's floor and wall meshes (:func:`scenes.geometry.mount_meshes`).
+    unit directions ``d_diode`` (M, 3) (diode frame), ray traced by :class:`simcore.render.irradiance.Renderer`
+    against the well's floor and wall meshes (:func:`scenes.meshes.mount_meshes`).
 
     ``samples``: direct samples per direction (4 m^2, see ``Renderer.render``). ``control_variate``:
     False (default) samples the whole diode, so the traced value is an independent check of the
     overlap model; True uses the renderer's aperture split (zero noise where the mesh is the analytic well).
     """
-    import trimesh
-    from scenes.geometry import mount_meshes
-    from simcore.render import DiodeSet, Renderer
     d = np.atleast_2d(np.asarray(d_diode, dtype=float))
     cfg = well_config(aperture)
     parts = mount_meshes(cfg, 0)
     mesh = trimesh.util.concatenate([parts[k] for k in ("floor", "well") if k in parts])
-    ds = DiodeSet.from_config(cfg)
+    ds = DiodeSurfaces.from_config(cfg)
     r = Renderer(ds, mesh, e_sun_w_m2=1.0, control_variate=control_variate, variant=variant)
     sun_body = d @ cfg.frames[0]
     res = r.render(sun_body, None, direct_samples=int(samples), albedo=False, seed=int(seed))
@@ -132,7 +143,6 @@ def analytic_angles(aperture, phi_deg=0.0, levels=DEFAULT_LEVELS, step_deg=0.01)
 
 def eq415_angles(fov_deg, levels=DEFAULT_LEVELS, step_deg=0.01):
     """Return {level: angle_deg} of thesis eq. 4.15 with FOV ``fov_deg`` (any azimuth)."""
-    from simcore.response import Eq415Response
     th = np.arange(0.0, 90.0, step_deg)
     return response_angles(th, Eq415Response(fov_deg).response(cut_directions(th, 0.0)), levels)
 
@@ -158,11 +168,9 @@ def angular_cuts(aperture, *, fov_deg=None, theta_deg=None, phi_deg=(0.0, 45.0),
     use a fine grid near the cut-off) with the
     traced black well (renderer), the analytic overlap, eq. 4.15 (``fov_deg``, default: the angle up to
     which the diode is fully lit along the wall axes), cos theta, and the well traced with each
-    :class:`simcore.walls.WallMaterial` in ``materials`` (``rays`` paths per direction; the overlap plus
+    :class:`simcore.render.walls.WallMaterial` in ``materials`` (``rays`` paths per direction; the overlap plus
     the traced reflections, ``WellTrace.response_cv``). Curve names: 'traced black', 'overlap',
     'eq. 4.15', 'cos' and each material's label."""
-    from simcore.response import Eq415Response
-    from simcore.walls import trace_well
     th = np.arange(0.0, 90.0, 2.5) if theta_deg is None else np.asarray(theta_deg, dtype=float)
     if fov_deg is None:
         fov_deg = float(np.degrees(np.arctan2((aperture.opening_x_m - aperture.diode_x_m) / 2, aperture.height_m)))
@@ -188,21 +196,6 @@ def angular_cuts(aperture, *, fov_deg=None, theta_deg=None, phi_deg=(0.0, 45.0),
     return CutStudy(aperture, float(fov_deg), th, curves, errs, angles)
 
 
-def plot_cuts(study, path=None, zoom_from_deg=None):
-    """Return a list of Figures (one per azimuth) of a :class:`CutStudy` with
-    :func:`simcore.plots.plot_angular_response`; ``zoom_from_deg`` (e.g. 60) draws only the angles from
-    there on; ``path`` (e.g. 'out/cut') writes ``path_phi<phi>.png``."""
-    from simcore.plots import plot_angular_response
-    figs = []
-    keep = np.ones(study.theta_deg.shape, bool) if zoom_from_deg is None else study.theta_deg >= zoom_from_deg
-    for phi, c in study.curves.items():
-        p = None if path is None else f"{path}_phi{phi:g}.png"
-        where = "wall axis" if phi == 0 else ("diagonal" if phi == 45 else f"azimuth {phi:g} deg")
-        figs.append(plot_angular_response(study.theta_deg[keep], {k: v[keep] for k, v in c.items()},
-                                          fov_deg=study.fov_deg, cutoff_deg=EQ415_CUTOFF_DEG,
-                                          errors={k: v[keep] for k, v in study.errors[phi].items()}, path=p,
-                                          title=f"Angular response along the {where} (phi = {phi:g} deg)"))
-    return figs
 
 
 @dataclass
@@ -227,9 +220,7 @@ class ResponseMap:
 
 def response_map(aperture, *, nside=16, fov_deg=None, material=None, samples=1024, rays=20_000, seed=0):
     """Return a :class:`ResponseMap` over the whole sphere (HEALPix ``nside``): black walls traced by the
-    renderer (``material`` None) or the well traced with a :class:`simcore.walls.WallMaterial`."""
-    from simcore.response import Eq415Response
-    from simcore.walls import trace_well
+    renderer (``material`` None) or the well traced with a :class:`simcore.render.walls.WallMaterial`."""
     d = healpix_directions(nside)
     front = d[:, 2] > 0
     tr, se = np.zeros(len(d)), np.zeros(len(d))
@@ -245,46 +236,6 @@ def response_map(aperture, *, nside=16, fov_deg=None, material=None, samples=102
     return ResponseMap(int(nside), d, tr, se, aperture.response(d), Eq415Response(fov_deg).response(d), label)
 
 
-def plot_response_map(rmap, path=None):
-    """Return a Figure: the traced response over the diode's hemisphere (polar plot: radius = incidence
-    angle, angle = azimuth from the u wall axis), traced - overlap in standard errors, and eq. 4.15 -
-    overlap; ``path`` writes it (.png/.pdf)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.tri import Triangulation
-    from simcore.plots import save_figure
-    d = rmap.d_diode
-    keep = d[:, 2] > -0.05
-    th = np.degrees(np.arccos(np.clip(d[keep, 2], -1, 1)))
-    ph = np.arctan2(d[keep, 1], d[keep, 0])
-    x, y = th * np.cos(ph), th * np.sin(ph)
-    tri = Triangulation(x, y)
-    fig = Figure(figsize=(13.5, 4.6), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3)
-    panels = [(rmap.traced[keep], f"{rmap.label}: response", "viridis", (0, 1)),
-              (rmap.z_score[keep], "(traced - overlap) / SE", "coolwarm", (-4, 4)),
-              ((rmap.eq415 - rmap.overlap)[keep], "eq. 4.15 - overlap", "coolwarm", None)]
-    for ax, (val, title, cmap, lim) in zip(axes, panels):
-        if lim is None:
-            m = float(np.max(np.abs(val))) or 1.0
-            lim = (-m, m)
-        pc = ax.tripcolor(tri, val, shading="gouraud", cmap=cmap, vmin=lim[0], vmax=lim[1])
-        for r in (30, 60, 90):
-            t = np.linspace(0, 2 * np.pi, 200)
-            ax.plot(r * np.cos(t), r * np.sin(t), color="0.3", lw=0.5)
-        ax.plot([-90, 90], [0, 0], color="0.3", lw=0.4)
-        ax.plot([0, 0], [-90, 90], color="0.3", lw=0.4)
-        ax.set_aspect("equal")
-        ax.set_xlim(-95, 95)
-        ax.set_ylim(-95, 95)
-        ax.set_xlabel("theta cos(phi) [deg] (u wall axis)")
-        ax.set_ylabel("theta sin(phi) [deg] (v wall axis)")
-        ax.set_title(title, fontsize=10)
-        fig.colorbar(pc, ax=ax, shrink=0.8)
-    if path is not None:
-        save_figure(fig, path)
-    return fig
 
 
 # ----------------------------------------------------------------------------- design
@@ -353,28 +304,17 @@ def design_aperture(fov_deg, *, cutoff_deg=EQ415_CUTOFF_DEG, diode_area_m2=BPW34
 
 # ----------------------------------------------------------------------------- wall reflections and albedo
 
-def one_orbit_geometry(*, step_s=10.0, start=None, orbit=None):
-    """Return the :class:`simcore.study.Geometry` of one orbital period (default ESTCube-1 from the thesis'
-    start, thesis tumble) at ``step_s``."""
-    from simcore.epochs import Epochs
-    from simcore.orbit import Orbit
-    from simcore.study import DEFAULT_START, compute_geometry, orbital_period_s
-    orbit = Orbit.default() if orbit is None else orbit
-    period = orbital_period_s(orbit)
-    return compute_geometry(orbit, Epochs.range(DEFAULT_START if start is None else start, period, float(step_s)))
 
 
 def wall_albedo_effect(config, materials, *, geometry=None, step_s=20.0, dead=(0,), theta_step_deg=3.0,
                        phi_step_deg=9.0, rays=10_000, seed=0, tables=None):
     """Return rows {material, albedo_mean_w_m2, albedo_ratio, direct_mean_w_m2, direct_ratio,
     response_60/75/83deg} comparing, over the sunlit part of one orbit (live diodes of ``config``), the
-    Earth albedo and direct Sun picked up with reflecting walls (:class:`simcore.walls.TabulatedResponse`
+    Earth albedo and direct Sun picked up with reflecting walls (:class:`simcore.render.walls.TabulatedResponse`
     per material) against black walls (the overlap model). Both use the numpy backend of
-    :func:`simcore.analytic.diode_irradiance` with the body box for the albedo; the direct Sun without the
+    :func:`simcore.radiometry.analytic.diode_irradiance` with the body box for the albedo; the direct Sun without the
     box (its exact box clipping needs the overlap model). ``tables``: optional {label: TabulatedResponse}
     (reused instead of tracing)."""
-    from simcore.analytic import BodyBox, diode_irradiance
-    from simcore.walls import TabulatedResponse
     cfg = _as_config(config)
     aps = cfg.apertures
     if len({(a.opening_x_m, a.height_m) for a in aps}) != 1:
@@ -416,50 +356,43 @@ def wall_albedo_effect(config, materials, *, geometry=None, step_s=20.0, dead=(0
 # ----------------------------------------------------------------------------- self-shadowing
 
 def _as_config(config):
-    from scenes.config import SatelliteConfig
     return config if isinstance(config, SatelliteConfig) else SatelliteConfig.load(config)
 
 
 def self_shadowing(config, *, nside=8, samples=64, seed=0, loss_threshold=0.01, min_response=1e-6,
                    reference="analytic", variant=None):
     """Return rows (one per diode) of the shadowing of each diode's field of view by the rest of the
-    satellite: traced with the full mesh (:func:`scenes.geometry.build_satellite_mesh`: body, ramps,
+    satellite: traced with the full mesh (:func:`scenes.meshes.build_satellite_mesh`: body, ramps,
     floors, wells of all diodes) over HEALPix directions (``nside``) against its own well alone (the
     analytic overlap, which the black-wall tracing of the well reproduces, see the tests; or, with
     ``reference='traced'``, the renderer with only diode k's own floor + well,
-    :func:`scenes.geometry.mount_meshes`).
+    :func:`scenes.meshes.mount_meshes`).
 
     Columns: ``fov_sr`` (solid angle where the own-well response > ``min_response``: directions in the
     diode plane, response ~1e-17, do not count), ``shadowed_fov_fraction``
     (share of it where the traced response is more than ``loss_threshold`` and 3 SE below the own
     well's), ``body_fov_fraction`` (the same for the body box alone, closed form,
-    :func:`simcore.occlusion.direct_visibility`), ``response_loss`` (response-weighted loss: 1 -
+    :func:`simcore.shapes.occlusion.direct_visibility`), ``response_loss`` (response-weighted loss: 1 -
     sum traced / sum own over the sphere), ``body_response_loss`` (box alone) and
     ``neighbour_response_loss`` (the rest: ramps and other mounts).
     """
-    from scenes.geometry import build_satellite_mesh
-    from simcore.analytic import BodyBox
-    from simcore.occlusion import direct_visibility
-    from simcore.render import DiodeSet, Renderer
     cfg = _as_config(config)
     d = healpix_directions(nside)
     pix_sr = 4 * np.pi / len(d)
     frames = cfg.frames
     own = np.stack([a.response(d @ f.T) for a, f in zip(cfg.apertures, frames)], axis=1)      # (P, K)
     if reference == "traced":
-        import trimesh
-        from scenes.geometry import mount_meshes
-        ds_all = DiodeSet.from_config(cfg)
+        ds_all = DiodeSurfaces.from_config(cfg)
         for k in range(cfg.n_diodes):
             parts = mount_meshes(cfg, k)
             mesh_k = trimesh.util.concatenate([parts[p] for p in ("floor", "well") if p in parts])
-            ds = DiodeSet(ds_all.positions_m[k:k + 1], ds_all.frames[k:k + 1], ds_all.sizes_m[k:k + 1],
+            ds = DiodeSurfaces(ds_all.positions_m[k:k + 1], ds_all.frames[k:k + 1], ds_all.sizes_m[k:k + 1],
                           (cfg.apertures[k],))
             rk = Renderer(ds, mesh_k, e_sun_w_m2=1.0, variant=variant)
             own[:, k] = rk.render(d, None, direct_samples=int(samples), albedo=False, seed=int(seed)).direct_w_m2[:, 0]
     elif reference != "analytic":
         raise ValueError(f"reference must be 'analytic' or 'traced', got {reference!r}")
-    r = Renderer(DiodeSet.from_config(cfg), build_satellite_mesh(cfg), e_sun_w_m2=1.0, variant=variant)
+    r = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), e_sun_w_m2=1.0, variant=variant)
     res = r.render(d, None, direct_samples=int(samples), albedo=False, seed=int(seed))
     full, se = res.direct_w_m2, res.direct_se_w_m2
     box = BodyBox.from_config(cfg)
@@ -486,7 +419,6 @@ def self_shadowing(config, *, nside=8, samples=64, seed=0, loss_threshold=0.01, 
 def self_shadowing_table(configs=None, **kw):
     """Return the rows of :func:`self_shadowing` for every configuration in ``configs``
     (default: all shipped, :func:`scenes.config.list_configs`)."""
-    from scenes.config import list_configs
     rows = []
     for name in (list_configs() if configs is None else configs):
         rows += self_shadowing(name, **kw)
@@ -500,7 +432,6 @@ def sweep_config(tilt_deg, fov_deg, height_mm=None, *, name=None):
     every diode in a well of ``height_mm`` whose opening gives full response up to ``fov_deg`` along the
     wall axes (``w = a + 2 h tan FOV``); ``height_mm`` None: the eq. 4.15 design (cut-off 83.1 deg).
     Raises :class:`scenes.config.ConfigError` when the mounts do not fit (clearance, panel, overlap)."""
-    from scenes.config import LAYOUT_DEFAULTS, SatelliteConfig, expand_layout
     tables = expand_layout({**LAYOUT_DEFAULTS, "pattern": "thesis14", "tilt_deg": float(tilt_deg),
                              "fov_deg": float(fov_deg)})
     if height_mm is not None:
@@ -516,10 +447,7 @@ def response_coverage(config, *, dead=(0,), level=0.01, nside=16):
     """Return the coverage fractions {'red', 'yellow', 'green'} counting, per HEALPix direction, the live
     diodes whose real response (the well's overlap x the body box's visibility, black walls) reaches
     ``level`` of normal incidence, instead of the nominal FOV cone of
-    :func:`simcore.coverage.coverage_fractions` (thesis sec. 3.2.4)."""
-    from simcore.analytic import BodyBox
-    from simcore.coverage import CLASSES, coverage_classes, pixel_directions
-    from simcore.occlusion import direct_visibility
+    :func:`simcore.studies.coverage.coverage_fractions` (thesis sec. 3.2.4)."""
     cfg = _as_config(config)
     d = pixel_directions(nside)
     resp = np.stack([a.response(d @ f.T) for a, f in zip(cfg.apertures, cfg.frames)], axis=1)
@@ -542,20 +470,15 @@ def sweep_apertures(heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.0, 30.0), fo
     """Return the sweep table (list of dict rows, one per height x tilt x FOV) of the 14-diode layout
     (:func:`sweep_config`; a height None means the eq. 4.15 design):
 
-    ``green``/``yellow``/``red``: coverage fractions (:func:`simcore.coverage.coverage_fractions`, ``dead``:
+    ``green``/``yellow``/``red``: coverage fractions (:func:`simcore.studies.coverage.coverage_fractions`, ``dead``:
     nominal FOV cones, the same for every height); ``green_response``: the green fraction counting the diodes
     whose real response reaches 1 % (:func:`response_coverage`: it sees the height through the cut-off);
     ``albedo_fraction``: albedo / (direct + albedo) summed over the live diodes and the sunlit epochs of one
-    orbit (analytic model with the body box, :func:`simcore.analytic.diode_irradiance`);
+    orbit (analytic model with the body box, :func:`simcore.radiometry.analytic.diode_irradiance`);
     ``<estimator>_mean_deg`` / ``_p95_deg``: sunlit angle errors of the estimators over that orbit
-    (sensor chain :func:`simcore.evaluate.measure`, no noise). Mounts that do not fit give
+    (sensor chain :func:`simcore.pipeline.evaluate.measure`, no noise). Mounts that do not fit give
     ``feasible`` False, the reason, and NaN metrics.
     """
-    from scenes.config import ConfigError
-    from simcore.analytic import BodyBox, diode_irradiance
-    from simcore.coverage import coverage_fractions
-    from simcore.evaluate import error_table, errors, measure, run_estimators
-    from simcore.sensor import DIODES
     g = one_orbit_geometry(step_s=step_s) if geometry is None else geometry
     sunlit = g.illumination >= 1.0
     rows = []
@@ -602,41 +525,6 @@ def sweep_apertures(heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.0, 30.0), fo
     return rows
 
 
-def plot_sweep(rows, path=None, estimators=("wls", "albedo_sun")):
-    """Return a Figure of a sweep table: green fraction, albedo fraction and the estimators' mean sunlit
-    errors against the well height, one line per (tilt, FOV); ``path`` writes it."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from simcore.plots import save_figure
-    metrics = [("green", "coverage: green fraction (FOV cones) [-]"),
-               ("green_response", "coverage: green fraction (response >= 1 %) [-]"),
-               ("albedo_fraction", "albedo / total, sunlit [-]")]
-    metrics += [(f"{e}_mean_deg", f"{e}: mean sunlit error [deg]") for e in estimators]
-    metrics += [(f"{e}_p95_deg", f"{e}: p95 sunlit error [deg]") for e in estimators]
-    fig = Figure(figsize=(4.2 * ((len(metrics) + 1) // 2), 7.5), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(2, (len(metrics) + 1) // 2, squeeze=False).T.ravel()
-    keys = sorted({(r["tilt_deg"], r["fov_deg"]) for r in rows})
-    colours = ["#1f5fa8", "#e08a00", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#17becf", "#7f7f7f"]
-    for ax, (col, label) in zip(axes, metrics):
-        for j, (tilt, fov) in enumerate(keys):
-            sel = sorted((r for r in rows if (r["tilt_deg"], r["fov_deg"]) == (tilt, fov) and r.get("feasible")),
-                         key=lambda r: r["height_mm"])
-            if not sel:
-                continue
-            ax.plot([r["height_mm"] for r in sel], [r.get(col, np.nan) for r in sel], marker="o",
-                    color=colours[j % len(colours)], ls="-" if fov == keys[0][1] else "--",
-                    label=f"tilt {tilt:g}, FOV {fov:g}")
-        ax.set_xlabel("well height [mm]")
-        ax.set_ylabel(label)
-        ax.grid(True, lw=0.4, alpha=0.5)
-    for ax in axes[len(metrics):]:
-        ax.set_visible(False)
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 6), fontsize=9, frameon=False)
-    if path is not None:
-        save_figure(fig, path)
-    return fig
 
 
 def format_table(rows, columns=None, floatfmt="{:.3g}"):
@@ -658,8 +546,6 @@ def run_aperture_sweep(out_dir, heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.
                        *, step_s=20.0, dead=(0,), log=print):
     """Run :func:`sweep_apertures` and write ``sweep.csv``, ``sweep.md`` and ``sweep.png`` into ``out_dir``;
     return the rows. The command-line entry point (``sunsim aperture-sweep``)."""
-    import csv
-    from pathlib import Path
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = sweep_apertures(heights_mm, tilts_deg, fovs_deg, step_s=step_s, dead=dead,
@@ -684,7 +570,6 @@ def reflectance_series(aperture, rhos=(0.0, 0.05, 0.2, 0.5, 0.9), *, theta_deg=N
     of each reflectance in ``rhos`` (same seed: common random
     numbers, so the curves differ by the walls alone; no Russian roulette, so each path's contribution is
     non-decreasing in rho)."""
-    from simcore.walls import WallMaterial, trace_well
     th = np.arange(0.0, 90.0, 2.0) if theta_deg is None else np.asarray(theta_deg, dtype=float)
     d = cut_directions(th, phi_deg)
     resp, se, angles = [], [], []
@@ -698,67 +583,11 @@ def reflectance_series(aperture, rhos=(0.0, 0.05, 0.2, 0.5, 0.9), *, theta_deg=N
             "response_se": np.array(se), "angles": angles, "overlap": aperture.response(d)}
 
 
-def plot_reflectance_series(series, path=None):
-    """Return a Figure: response cuts for each wall reflectance (left) and their excess over black walls
-    with +-2 SE bands (right, log scale); ``path`` writes it."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from simcore.plots import save_figure
-    th = series["theta_deg"]
-    fig = Figure(figsize=(11.5, 4.6), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax1, ax2 = fig.subplots(1, 2)
-    ax1.plot(th, series["overlap"], color="k", lw=2.5, alpha=0.35, label="analytic overlap (black)")
-    for rho, r, se in zip(series["rho"], series["response"], series["response_se"]):
-        line, = ax1.plot(th, r, lw=1.3, label=f"rho {rho:g}")
-        if rho > 0:
-            ex = r - series["overlap"]
-            ax2.plot(th, np.where(ex > 0, ex, np.nan), color=line.get_color(), lw=1.3, label=f"rho {rho:g}")
-            ax2.fill_between(th, np.maximum(ex - 2 * se, 1e-6), ex + 2 * se, color=line.get_color(), alpha=0.2)
-    ax1.set_ylabel("response relative to normal incidence [-]")
-    ax2.set_ylabel("response - black-wall overlap [-]")
-    ax2.set_yscale("log")
-    ax2.set_ylim(1e-5, 1)
-    for ax in (ax1, ax2):
-        ax.set_xlabel(f"incidence angle [deg] (azimuth {series['phi_deg']:g} deg)")
-        ax.grid(True, lw=0.4, alpha=0.5)
-        ax.axvline(EQ415_CUTOFF_DEG, color="0.4", ls=":", lw=1)
-        ax.legend(fontsize=8)
-    if path is not None:
-        save_figure(fig, path)
-    return fig
 
 
-# ----------------------------------------------------------------------------- command line
-
-def _none_or_float(text):
-    return None if text.lower() in ("none", "eq415", "design") else float(text)
 
 
-def build_parser(parser=None):
-    """Return (or fill) an argparse parser for the aperture sweep: --heights (mm; 'eq415' = the eq. 4.15
-    design), --tilts (deg), --fovs (deg), --step (s), --dead, -o/--out."""
-    import argparse
-    p = parser or argparse.ArgumentParser(
-        prog="python -m simcore.aperture_study",
-        description="Aperture sweep: well height x tilt x FOV -> coverage, albedo fraction, estimator errors "
-                    "over one orbit (writes sweep.csv, sweep.md, sweep.png)")
-    p.add_argument("--heights", nargs="+", type=_none_or_float, default=[0.3, 0.5, 1.0],
-                   help="well heights in mm ('eq415': the eq. 4.15 design height for each FOV)")
-    p.add_argument("--tilts", nargs="+", type=float, default=[20.0, 25.0, 30.0], help="ramp tilts in deg")
-    p.add_argument("--fovs", nargs="+", type=float, default=[70.0, 75.0], help="FOVs in deg (full response up to it)")
-    p.add_argument("--step", type=float, default=20.0, help="orbit sampling step in s (one orbit)")
-    p.add_argument("--dead", nargs="*", type=int, default=[0], help="dead diode indices (thesis: 0)")
-    p.add_argument("-o", "--out", required=True, help="output folder")
-    return p
 
 
-def main(argv=None):
-    """Run the aperture sweep from the command line; return 0."""
-    args = build_parser().parse_args(argv)
-    run_aperture_sweep(args.out, args.heights, args.tilts, args.fovs, step_s=args.step, dead=tuple(args.dead))
-    return 0
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -61,9 +61,10 @@ import numpy as np
 
 from simcore import _llvm
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
+from simcore.environment.maps import named_map
+from simcore.shapes.aperture import lit_rectangle
 
 SUN_ANGULAR_RADIUS_RAD = float(np.arcsin(R_SUN_M / AU_M))  # 0.2666 deg: the 0.53 deg disc at 1 AU
-DEFAULT_MAP = os.path.join(os.path.dirname(__file__), "data", "toms_2005_mean.npz")
 
 _VARIANTS = ("llvm_ad_mono", "cuda_ad_mono")
 _DEFENSIVE = 0.02         # share of uniform-in-solid-angle sampling in the albedo proposal
@@ -81,7 +82,7 @@ _MAX_LANES = 1 << 22      # lanes per launch (memory bound, ~100 MB of temporari
 
 def _cuda_works():
     """Return True when Dr.Jit can use a CUDA device in this process."""
-    import drjit as dr
+    dr = _llvm.import_drjit()
     try:
         return bool(dr.has_backend(dr.JitBackend.CUDA))
     except Exception:  # a broken driver is "no GPU" here
@@ -101,19 +102,19 @@ def choose_variant(requested=None):
         raise ValueError(f"unknown render variant {requested!r}; use one of {_VARIANTS} "
                          "or None to pick the GPU when there is one")
     if requested == "cuda_ad_mono":
-        import mitsuba  # noqa: F401  (loads drjit's backends)
+        _llvm.import_mitsuba()  # loads drjit's backends
         if not _cuda_works():
             raise RuntimeError("variant 'cuda_ad_mono' was requested but no working CUDA GPU was found "
                                "(Dr.Jit reports no CUDA backend); use variant='llvm_ad_mono' or None "
                                "to render on the CPU")
         return requested
     if requested is None:
-        import mitsuba  # noqa: F401
+        _llvm.import_mitsuba()
         if _cuda_works():
             return "cuda_ad_mono"
     # The CPU variant: make sure a usable libLLVM is there before Dr.Jit touches it.
     _llvm.find_libllvm()
-    import drjit as dr
+    dr = _llvm.import_drjit()
     if not dr.has_backend(dr.JitBackend.LLVM):
         raise _llvm.LLVMNotFoundError(
             f"Dr.Jit could not load the libLLVM at {os.environ.get(_llvm.ENV)!r}. " + _llvm.INSTALL_HINT)
@@ -123,12 +124,12 @@ def choose_variant(requested=None):
 # --------------------------------------------------------------------------- inputs
 
 @dataclass(frozen=True)
-class DiodeSet:
+class DiodeSurfaces:
     """K rectangular diodes in the body frame (metres).
 
     ``positions_m`` (K, 3): centre of each sensitive surface; ``frames`` (K, 3, 3):
     rows (u, v, n), n the outward normal; ``sizes_m`` (K, 2): sides along u and v.
-    ``apertures``: optional sequence of K ``simcore.aperture.WellAperture`` used only
+    ``apertures``: optional sequence of K ``simcore.shapes.aperture.WellAperture`` used only
     to shape the albedo sampling (the traced mesh decides what is blocked).
     """
 
@@ -169,7 +170,7 @@ class DiodeSet:
 
     @classmethod
     def from_config(cls, config):
-        """Return the DiodeSet of a ``scenes.config.SatelliteConfig`` (its ``positions_m``,
+        """Return the DiodeSurfaces of a ``scenes.config.SatelliteConfig`` (its ``positions_m``,
         ``frames`` and ``aperture`` — one WellAperture shared by all diodes or one per diode)."""
         frames = np.asarray(config.frames, dtype=float)
         ap = getattr(config, "apertures", None)
@@ -239,7 +240,7 @@ def _unit(v, name):
 class Renderer:
     """A satellite scene ready to render diode irradiance along many epochs.
 
-    ``diodes``: a DiodeSet; ``occluder_mesh``: a ``trimesh.Trimesh`` (body frame,
+    ``diodes``: a DiodeSurfaces; ``occluder_mesh``: a ``trimesh.Trimesh`` (body frame,
     metres) of everything that can block light (not the diodes' own surfaces), or
     None for bare diodes; ``reflectivity``: a (n_lat, n_lon) map on a regular
     latitude/longitude grid, row 0 the southern band, column 0 starting at
@@ -257,18 +258,17 @@ class Renderer:
     def __init__(self, diodes, occluder_mesh=None, *, reflectivity=None, lon_west_deg=-180.0,
                  earth_radius_m=R_EARTH_MEAN_M, e_sun_w_m2=E_SUN_W_M2, sun_angular_radius_rad=0.0,
                  variant=None, threads=None, control_variate=True):
-        if not isinstance(diodes, DiodeSet):
-            raise TypeError("diodes must be a simcore.render.DiodeSet (positions_m, frames, sizes_m)")
+        if not isinstance(diodes, DiodeSurfaces):
+            raise TypeError("diodes must be a simcore.render.irradiance.DiodeSurfaces (positions_m, frames, sizes_m)")
         self.diodes = diodes
         self.variant = choose_variant(variant)
-        import drjit as dr
-        import mitsuba as mi
+        dr, mi = _llvm.import_drjit(), _llvm.import_mitsuba()
         mi.set_variant(self.variant)
         if threads is not None:
             dr.set_thread_count(int(threads))
         self._dr, self._mi = dr, mi
         if reflectivity is None:
-            reflectivity = np.load(DEFAULT_MAP)["reflectivity"]
+            reflectivity = named_map("toms2005").values
         refl = np.asarray(reflectivity, dtype=float)
         if refl.ndim != 2 or min(refl.shape) < 1 or not np.all(np.isfinite(refl)):
             raise ValueError(f"reflectivity must be a finite (n_lat, n_lon) map, got shape {refl.shape}")
@@ -384,7 +384,7 @@ class Renderer:
     def _well_rect(self, t, task, d):
         """Return (x0, x1, y0, y1, lit) for unit directions ``d``: the rectangle of the diode
         (fractions of its sides, centred, so within [-1/2, 1/2]) whose rays toward ``d`` leave
-        through the opening of the diode's analytic well (``simcore.aperture.WellAperture``
+        through the opening of the diode's analytic well (``simcore.shapes.aperture.WellAperture``
         geometry: the opening shifted by -h tan along each wall axis), and its area fraction,
         the lit fraction."""
         dr, mi = self._dr, self._mi
@@ -392,14 +392,8 @@ class Renderer:
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
         ax, ay, wx, wy, h = [dr.gather(mi.Float, mi.Float(t["ap"][:, k].astype(np.float32)), task)
                              for k in range(5)]          # half diode, half opening, height
-        inv_n = 1.0 / dr.maximum(dn, 1e-6)
-        sx, sy = h * du * inv_n, h * dv * inv_n
-        x0 = dr.maximum(-ax, -wx - sx) / (2.0 * ax)
-        x1 = dr.minimum(ax, wx - sx) / (2.0 * ax)
-        y0 = dr.maximum(-ay, -wy - sy) / (2.0 * ay)
-        y1 = dr.minimum(ay, wy - sy) / (2.0 * ay)
-        lit = dr.select(dn > 0, dr.maximum(x1 - x0, 0.0) * dr.maximum(y1 - y0, 0.0), 0.0)
-        return x0, x1, y0, y1, lit
+        return lit_rectangle(ax, ay, wx, wy, h, du, dv, dn, maximum=dr.maximum, minimum=dr.minimum,
+                             where=dr.select)
 
     def _split_point(self, t, task, d, fx, fy):
         """Return (fx, fy, weight) of the diode point for a lane of mode 0 (plain: the point as

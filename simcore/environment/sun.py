@@ -30,9 +30,9 @@ Earth about the Earth-Moon barycentre) leaves an interpolation error below
 import erfa
 import numpy as np
 
-from simcore import frames
+from simcore.environment import frames
 from simcore.constants import AU_M
-from simcore.epochs import Epochs
+from simcore.environment.epochs import Epochs
 
 SUN_GRID_STEP_S = 3600.0
 C_AU_PER_DAY = 299_792_458.0 * 86400.0 / AU_M   # speed of light, au/day
@@ -74,9 +74,9 @@ def sun_position_gcrs_m(epochs, *, aberration=True, exact=False):
 def sun_position_ecef_m(epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0, *, aberration=True):
     """Return (N, 3) the apparent geocentric Sun position in ITRS (ECEF), metres.
 
-    GCRS -> ITRS with :func:`simcore.frames.R_itrs_from_gcrs` (``dut1_s`` =
+    GCRS -> ITRS with :func:`simcore.environment.frames.R_itrs_from_gcrs` (``dut1_s`` =
     UT1 - UTC in s, polar motion in rad; the zero defaults rotate the Sun's
-    longitude by at most 0.9 s x 15"/s = 13.5", see :mod:`simcore.frames`).
+    longitude by at most 0.9 s x 15"/s = 13.5", see :mod:`simcore.environment.frames`).
     """
     epochs = Epochs.from_any(epochs)
     R = frames.R_itrs_from_gcrs(epochs, dut1_s, xp_rad, yp_rad)

@@ -1,13 +1,13 @@
 """Aperture walls that reflect: the angular response of a diode in a well with a BSDF, ray traced.
 
-The renderer (:mod:`simcore.render`) treats the satellite as a black
+The renderer (:mod:`simcore.render.irradiance`) treats the satellite as a black
 occluder. Real wells are anodised (matte black, a few % diffuse reflectance)
 or bare aluminium (a rough conductor), and light reflected by their walls
 reaches the diode. A diode's response to a far (collimated) source is a
 function of the direction only, so it is traced here once per direction for
-one well (:class:`simcore.aperture.WellAperture`), and tabulated
+one well (:class:`simcore.shapes.aperture.WellAperture`), and tabulated
 (:class:`TabulatedResponse`) for use wherever a response is needed (e.g. the
-albedo sum of :func:`simcore.analytic.diode_irradiance` with
+albedo sum of :func:`simcore.radiometry.analytic.diode_irradiance` with
 ``backend='numpy'``).
 
 Estimator (traced from the source). In the diode frame (u, v, n) the well is
@@ -37,7 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcore.aperture import WellAperture
+from simcore import _llvm
+from simcore.render.irradiance import choose_variant
+from simcore.shapes.aperture import WellAperture
 
 MM_PER_M = 1e3
 _MAX_LANES = 1 << 21
@@ -258,20 +260,18 @@ def trace_well(aperture, d_diode, material, *, rays=100_000, seed=0, reflective_
     as absorbed where it stands); ``rr_depth``: Russian roulette from that bounce on. ``white_diode``
     (white-furnace tests only): the diode counts every arrival and then reflects it like the floor
     instead of absorbing it. ``variant``: the Mitsuba variant (None: the GPU one when a CUDA GPU works,
-    else the CPU one, as :func:`simcore.render.choose_variant`).
+    else the CPU one, as :func:`simcore.render.irradiance.choose_variant`).
     """
     if not isinstance(aperture, WellAperture):
-        raise TypeError(f"aperture must be a simcore.aperture.WellAperture, got {type(aperture).__name__}")
+        raise TypeError(f"aperture must be a simcore.shapes.aperture.WellAperture, got {type(aperture).__name__}")
     if not isinstance(material, WallMaterial):
-        raise TypeError("material must be a simcore.walls.WallMaterial (e.g. WallMaterial.matte_black())")
+        raise TypeError("material must be a simcore.render.walls.WallMaterial (e.g. WallMaterial.matte_black())")
     dirs = _unit_dirs(d_diode)
     rays = int(rays)
     if rays < 16:
         raise ValueError(f"rays must be >= 16 per direction, got {rays}")
-    from simcore.render import choose_variant
     variant = choose_variant(variant)
-    import drjit as dr
-    import mitsuba as mi
+    dr, mi = _llvm.import_drjit(), _llvm.import_mitsuba()
     if mi.variant() != variant:
         mi.set_variant(variant)
     scene = _scene(mi, aperture, material)
@@ -331,8 +331,8 @@ class TabulatedResponse:
     (theta, phi) and interpolated bilinearly, folded by the square well's symmetry
     (|u|, |v|, and u <-> v when the well is square).
 
-    ``response(d_diode)`` works like every response (:mod:`simcore.response`), so it can be used with
-    :func:`simcore.analytic.diode_irradiance` (``backend='numpy'``).
+    ``response(d_diode)`` works like every response (:mod:`simcore.radiometry.response`), so it can be used with
+    :func:`simcore.radiometry.analytic.diode_irradiance` (``backend='numpy'``).
     """
 
     aperture: WellAperture
