@@ -841,13 +841,8 @@ class Renderer:
         """Return the analytic wells' lit fractions (T,) for diodes k_ and body directions (T, 3)."""
         ap = self._ap_params[k_]
         dd = np.einsum("tij,tj->ti", self.diodes.frames[k_], d_body)
-        dn = dd[:, 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sx = np.where(dn > 0, ap[:, 4] * dd[:, 0] / np.where(dn > 0, dn, 1.0), 0.0)
-            sy = np.where(dn > 0, ap[:, 4] * dd[:, 1] / np.where(dn > 0, dn, 1.0), 0.0)
-        lx = np.clip(np.minimum(ap[:, 0], ap[:, 2] - sx) - np.maximum(-ap[:, 0], -ap[:, 2] - sx), 0, None)
-        ly = np.clip(np.minimum(ap[:, 1], ap[:, 3] - sy) - np.maximum(-ap[:, 1], -ap[:, 3] - sy), 0, None)
-        return np.where(dn > 0, lx * ly / (4 * ap[:, 0] * ap[:, 1]), 0.0)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            return lit_rectangle(ap[:, 0], ap[:, 1], ap[:, 2], ap[:, 3], ap[:, 4], dd[:, 0], dd[:, 1], dd[:, 2])[4]
 
 
 def _direct_size(n):
