@@ -100,3 +100,33 @@ def test_a_user_attitude_history_drives_the_study(tmp_path):
     np.testing.assert_allclose(study.geometry.R_gcrs_from_body[:, :, 0], np.tile([0.0, 1.0, 0.0], (50, 1)), atol=1e-12)
     with pytest.raises(ValueError, match="outside|span"):
         PreparedRun(RunOptions(duration_s=500, attitude_file=str(csv), output=str(tmp_path / "b.nc")))
+
+
+def test_a_north_first_map_renders_the_same_earth_as_south_first(tmp_path):
+    # Oracle: one physical Earth described in both row orders (lat_deg says which) must give the same
+    # rendered and analytic albedo, sample for sample. Before the fix the renderer read row 0 of a
+    # north-first map as the southern band and rendered a mirrored Earth.
+    from simcore.environment.maps import named_map
+    toms = named_map("toms2005")
+    south = tmp_path / "south.npz"
+    north = tmp_path / "north.npz"
+    np.savez(south, reflectivity=toms.values, lat_deg=toms.lat_deg, lon_deg=toms.lon_deg)
+    np.savez(north, reflectivity=toms.values[::-1], lat_deg=toms.lat_deg[::-1], lon_deg=toms.lon_deg)
+    # A sunlit span over the northern hemisphere's asymmetric albedo (2016-07-02 05:40 UTC).
+    base = ["run", "--start", "2016-07-02T05:40:00Z", "--duration", "12", "--samples", "256", "64"]
+    out = {}
+    for name, path in (("south", south), ("north", north)):
+        res = _sunsim(base + ["--map", str(path), "-o", str(tmp_path / f"{name}.nc")])
+        assert res.returncode in (0, 1), res.stderr
+        with xr.open_dataset(tmp_path / f"{name}.nc") as ds:
+            out[name] = (ds["irradiance"].sel(component="albedo").values, ds["analytic"].sel(component="albedo").values)
+    assert np.nanmax(out["south"][0]) > 1.0                     # the span does see the Earth
+    np.testing.assert_array_equal(out["north"][0], out["south"][0])
+    np.testing.assert_allclose(out["north"][1], out["south"][1], rtol=1e-12, atol=1e-12)
+    # and the mirrored Earth (north-first values read as south-first) is visibly another one
+    mirrored = tmp_path / "mirrored.npz"
+    np.savez(mirrored, reflectivity=toms.values[::-1], lat_deg=toms.lat_deg, lon_deg=toms.lon_deg)
+    res = _sunsim(base + ["--map", str(mirrored), "-o", str(tmp_path / "mirrored.nc")])
+    with xr.open_dataset(tmp_path / "mirrored.nc") as ds:
+        m = ds["irradiance"].sel(component="albedo").values
+    assert np.nanmax(np.abs(m - out["south"][0])) > 0.5

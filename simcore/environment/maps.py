@@ -164,6 +164,12 @@ class ReflectivityMap:
         """Return the longitude step in degrees."""
         return 360.0 / self.n_lon
 
+    @property
+    def values_south_first(self):
+        """Return ``values`` with row 0 the southern-most band, whatever the map's own row order:
+        the layout the renderer's texture lookup uses (column 0 stays the western-most cell)."""
+        return self.values if self.lat_deg[-1] > self.lat_deg[0] else self.values[::-1]
+
     @cached_property
     def lat_edges_deg(self):
         """Return the (n_lat + 1) band edges in degrees, in row order."""

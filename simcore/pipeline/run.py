@@ -136,7 +136,7 @@ class PreparedRun:
         if self._renderer is None:
             self._renderer = Renderer(
                 DiodeSurfaces.from_config(self.config), build_satellite_mesh(self.config),
-                reflectivity=self.map.values, lon_west_deg=float(self.map.lon_edges_deg[0]),
+                reflectivity=self.map.values_south_first, lon_west_deg=float(self.map.lon_edges_deg[0]),
                 sun_angular_radius_rad=self.sun_angular_radius_rad, variant=self.opts.variant)
         return self._renderer
 
