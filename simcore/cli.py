@@ -6,6 +6,7 @@ import sys
 import numpy as np
 
 from simcore._version import __version__
+from simcore.constants import E_SUN_W_M2
 
 DEFAULT_TLE_HELP = "TLE file (2- or 3-line; default: the shipped ESTCube-1 set, epoch 2016-07-27)"
 
@@ -87,6 +88,9 @@ def _add_render_options(p):
     p.add_argument("--map", default="toms2005", help="reflectivity map: toms2005, ceres2018-all, "
                    "ceres2018-clear or a .npz file (default %(default)s)")
     p.add_argument("--point-sun", action="store_true", help="a point Sun (no penumbra) instead of the 0.53 deg disc")
+    p.add_argument("--solar-flux", choices=["physical", "thesis"], default="physical",
+                   help="physical: 1361 W/m^2 at 1 AU (IAU 2015 B3, Kopp & Lean 2011) x (1 AU / r_sun)^2; "
+                        "thesis: a constant 1366.1 W/m^2 (default %(default)s)")
     p.add_argument("--variant", choices=["llvm_ad_mono", "cuda_ad_mono"],
                    help="Mitsuba variant (default: cuda_ad_mono when a GPU works, else llvm_ad_mono)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same numbers)")
@@ -106,6 +110,7 @@ def run_options(args):
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
         dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
         sun_disc=not args.point_sun, chunk_epochs=args.chunk, output=args.output,
+        **(dict(e_sun_w_m2=E_SUN_W_M2, distance_scaling=False) if args.solar_flux == "thesis" else {}),
         fail_on_check=args.fail_on_check)
 
 

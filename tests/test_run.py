@@ -130,3 +130,28 @@ def test_a_north_first_map_renders_the_same_earth_as_south_first(tmp_path):
     with xr.open_dataset(tmp_path / "mirrored.nc") as ds:
         m = ds["irradiance"].sel(component="albedo").values
     assert np.nanmax(np.abs(m - out["south"][0])) > 0.5
+
+
+def test_default_solar_flux_is_the_measured_tsi_with_inverse_square_and_thesis_flux_stays_available(tmp_path):
+    # Oracle: the irradiance of sunlight at the satellite is TSI x (1 AU / r)^2 with TSI = 1361 W/m^2
+    # (IAU 2015 Resolution B3; Kopp & Lean 2011 measured 1360.8 +- 0.5) and r the Earth-Sun distance
+    # from NREL's SPA (pvlib, an independent implementation; the satellite's parallax adds < 1e-4).
+    # The thesis' Sun is a constant 1366.1 W/m^2 (sec. 2.3.2). Same seed: same rays, so the two
+    # rendered direct irradiances differ by exactly that ratio, epoch by epoch.
+    import pandas as pd
+    from pvlib.solarposition import nrel_earthsun_distance
+    base = ["run", "--start", "2016-07-02T05:40:00Z", "--duration", "6", "--samples", "256", "64"]
+    assert _sunsim(base + ["-o", str(tmp_path / "phys.nc")]).returncode == 0
+    assert _sunsim(base + ["--solar-flux", "thesis", "-o", str(tmp_path / "thesis.nc")]).returncode == 0
+    with xr.open_dataset(tmp_path / "phys.nc") as p, xr.open_dataset(tmp_path / "thesis.nc") as t:
+        assert p.attrs["e_sun_w_m2"] == 1361.0 and t.attrs["e_sun_w_m2"] == 1366.1
+        times = pd.DatetimeIndex(p["time"].values).tz_localize("UTC")
+        d_au = nrel_earthsun_distance(times).values
+        expect = 1361.0 / d_au ** 2 / 1366.1                          # (N,) physical / thesis
+        dp = p["irradiance"].sel(component="direct").values
+        dt = t["irradiance"].sel(component="direct").values
+        lit = dt > 10.0
+        assert lit.sum() > 10
+        ratio = dp[lit] / dt[lit]
+        np.testing.assert_allclose(ratio, np.broadcast_to(expect[:, None], dp.shape)[lit], rtol=2e-4)
+        assert abs((1.0 / d_au ** 2).mean() - 0.9674) < 0.001        # early July, near aphelion (1.0167 AU)

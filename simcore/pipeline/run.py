@@ -31,7 +31,7 @@ from simcore import _llvm
 from simcore._version import __version__
 from simcore.environment import attitude as _attitude
 from simcore.pipeline import check as _check
-from simcore.constants import E_SUN_W_M2, R_SUN_M
+from simcore.constants import E_SUN_W_M2, R_SUN_M, TSI_W_M2
 from simcore.environment.epochs import Epochs
 from simcore.environment.maps import named_map
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges
@@ -63,7 +63,8 @@ class RunOptions:
     seed: int = 0
     reflectivity: str = "toms2005"
     sun_disc: bool = True              # finite solar disc: penumbra
-    distance_scaling: bool = False     # thesis: constant solar constant
+    e_sun_w_m2: float = TSI_W_M2        # solar irradiance at 1 AU (the thesis: E_SUN_W_M2 = 1366.1)
+    distance_scaling: bool = True      # x (1 AU / r_sun)^2 (the thesis: a constant, False)
     chunk_epochs: int = 512
     output: str = "runs/default.nc"
     fail_on_check: bool = False
@@ -137,7 +138,8 @@ class PreparedRun:
             self._renderer = Renderer(
                 DiodeSurfaces.from_config(self.config), build_satellite_mesh(self.config),
                 reflectivity=self.map.values_south_first, lon_west_deg=float(self.map.lon_edges_deg[0]),
-                sun_angular_radius_rad=self.sun_angular_radius_rad, variant=self.opts.variant)
+                e_sun_w_m2=self.opts.e_sun_w_m2, sun_angular_radius_rad=self.sun_angular_radius_rad,
+                variant=self.opts.variant)
         return self._renderer
 
     def sun_scale(self, sl):
@@ -148,7 +150,7 @@ class PreparedRun:
         g = self.geometry
         return diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
                                 self.config.frames, self.config.apertures, map=reflectivity_map,
-                                e_sun_w_m2=E_SUN_W_M2, distance_scaling=self.opts.distance_scaling,
+                                e_sun_w_m2=self.opts.e_sun_w_m2, distance_scaling=self.opts.distance_scaling,
                                 eclipse="conical" if self.opts.sun_disc else "cylindrical",
                                 body=BodyBox.from_config(self.config),
                                 sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct)
@@ -250,7 +252,7 @@ def build_dataset(study, data, variant):
         "variant": variant,
         "options": json.dumps(o.spec(), sort_keys=True),
         "software": json.dumps(_versions(), sort_keys=True),
-        "e_sun_w_m2": E_SUN_W_M2,
+        "e_sun_w_m2": study.opts.e_sun_w_m2,
         "period_s": float(orbital_period_s(study.orbit)),
     })
     flags, report = check_run(ds)
@@ -338,6 +340,9 @@ def options_of(ds, path):
     for k in ("dead", "spin_axis"):
         if k in kw:
             kw[k] = tuple(kw[k])
+    # files written before the solar flux was an option used the thesis' constant 1366.1 W/m^2
+    kw.setdefault("e_sun_w_m2", E_SUN_W_M2)
+    kw.setdefault("distance_scaling", False)
     return RunOptions(**kw, output=path)
 
 

@@ -21,6 +21,7 @@ from simcore.plots import plot_estimator_error, save_figure
 from simcore.studies.cross_map import evaluate_cross_map
 
 from estimators.metrics import hanning_mean_std
+from simcore.constants import E_SUN_W_M2
 from simcore.pipeline.evaluate import run_errors
 from simcore.pipeline.run import RunOptions, PreparedRun, execute, open_run
 
@@ -35,8 +36,10 @@ def run_options(config, folder, *, span="day", spin_rate_deg_s=1.9, reflectivity
     start, duration = SPANS[span]
     dead = () if config == "tilt0_fov90" else (0,)
     name = f"{config}_{span}_spin{spin_rate_deg_s:g}_{reflectivity}.nc"
+    # the thesis' Sun: a constant 1366.1 W/m^2, no 1/r^2
     return RunOptions(config=config, start=start, duration_s=duration, spin_rate_deg_s=spin_rate_deg_s,
-                      reflectivity=reflectivity, dead=dead, output=os.path.join(folder, name), **kw)
+                      reflectivity=reflectivity, dead=dead, output=os.path.join(folder, name),
+                      e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, **kw)
 
 
 def ensure_run(opts, log=print):
