@@ -37,6 +37,7 @@ def _geometry(args):
 def cmd_summary(args):
     """Orbit / Sun / eclipse summary of a study (what `run` shows before rendering)."""
     from simcore.constants import R_EARTH_MEAN_M
+    from simcore.environment.eclipse import sunlit
     from simcore.environment.geometry import eclipse_events, orbital_period_s
     orbit, g = _geometry(args)
     alt_km = (np.linalg.norm(g.r_sat_gcrs_m, axis=1) - R_EARTH_MEAN_M) / 1e3
@@ -54,7 +55,7 @@ def cmd_summary(args):
         "period_s": round(orbital_period_s(orbit), 1),
         "altitude_km": [round(float(np.nanmin(alt_km)), 1), round(float(np.nanmax(alt_km)), 1)],
         "beta_angle_deg": round(beta_deg, 2),
-        "sunlit_fraction": round(float(np.nanmean(g.illumination >= 1.0)), 4),
+        "sunlit_fraction": round(float(np.nanmean(sunlit(g.illumination))), 4),
         "umbra_fraction": round(float(np.nanmean(g.illumination <= 0.0)), 4),
         "penumbra_durations_s": [round(float(p), 1) for p in pen],
         "eclipse_events": [(k, round(float(t), 1)) for k, t in events],

@@ -290,3 +290,10 @@ def test_bad_inputs_raise(func):
         func(good, [0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="radius_m"):
         func(good, sun, radius_m=-1.0)
+
+
+def test_sunlit_is_the_whole_disc_visible():
+    # One definition everywhere (evaluate, studies, pages): sunlit <=> the conical model sees all of
+    # the solar disc; penumbra (0 < illumination < 1) and umbra are not sunlit.
+    from simcore.environment.eclipse import sunlit
+    np.testing.assert_array_equal(sunlit([1.0, 0.999999, 0.5, 0.0, np.nan]), [True, False, False, False, False])

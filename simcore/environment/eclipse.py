@@ -25,6 +25,17 @@ import numpy as np
 from simcore.constants import R_EARTH_MEAN_M, R_SUN_M
 
 
+def sunlit(illumination):
+    """Return (N,) bool: the epochs sunsim calls sunlit, where the whole solar disc is visible
+    (``illumination`` >= 1, the conical model's visible fraction of the disc; penumbra is not sunlit).
+
+    The one definition used by every evaluation, study and results page, so that one run gives one
+    set of sunlit statistics everywhere (the thesis' cylindrical shadow, eqs. 4.6-4.10, is stored
+    beside it as ``sunlit_cylindrical`` for comparison only).
+    """
+    return np.asarray(illumination, dtype=float) >= 1.0
+
+
 def _as_rows(name, value):
     """Return ``value`` as float64 (M, 3) with M >= 1, or raise ValueError."""
     arr = np.asarray(value, dtype=float)

@@ -8,6 +8,7 @@ import numpy as np
 
 from estimators import ESTIMATORS, THESIS_ESTIMATORS
 from estimators.metrics import angle_error_deg, orbit_summary, zenith_azimuth_error_deg
+from simcore.environment import eclipse
 from simcore.environment.attitude import quat_to_matrix
 from simcore.sensor.chain import DIODES, SensorChain
 
@@ -76,7 +77,7 @@ def run_errors(ds, *, diode="BPW34FS", noise=False, seed=0, which=None, smart_se
     if smart_select:
         est["smart_select"] = ESTIMATORS["smart_select"](e_p, normals, fov_deg=fov, e_s0=e_s0, live=live)
     R = quat_to_matrix(ds["q_gcrs_from_body"].values)
-    sunlit = ds["illumination"].values >= 1.0
+    sunlit = eclipse.sunlit(ds["illumination"].values)
     return errors(est, ds["sun_dir_body"].values, R), sunlit, {"e_p": e_p, "estimates": est}
 
 

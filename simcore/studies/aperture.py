@@ -43,6 +43,7 @@ import trimesh
 from scenes.config import LAYOUT_DEFAULTS, ConfigError, SatelliteConfig, expand_layout, list_configs
 from scenes.meshes import build_satellite_mesh, mount_meshes
 from simcore.constants import BPW34_AREA_M2
+from simcore.environment.eclipse import sunlit
 from simcore.environment.geometry import one_orbit_geometry
 from simcore.pipeline.evaluate import error_table, errors, measure, run_estimators
 from simcore.plots import plot_sweep
@@ -321,7 +322,7 @@ def wall_albedo_effect(config, materials, *, geometry=None, step_s=20.0, dead=(0
         raise ValueError("wall_albedo_effect tabulates one well; this configuration mixes wells")
     ap = aps[0]
     g = one_orbit_geometry(step_s=step_s) if geometry is None else geometry
-    lit = g.illumination >= 1.0
+    lit = sunlit(g.illumination)
     live = np.ones(cfg.n_diodes, bool)
     live[list(dead)] = False
     body = BodyBox.from_config(cfg)
@@ -480,7 +481,7 @@ def sweep_apertures(heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.0, 30.0), fo
     ``feasible`` False, the reason, and NaN metrics.
     """
     g = one_orbit_geometry(step_s=step_s) if geometry is None else geometry
-    sunlit = g.illumination >= 1.0
+    lit_epochs = sunlit(g.illumination)
     rows = []
     combos = [(h, t, f) for h in heights_mm for t in tilts_deg for f in fovs_deg]
     for i, (h, tilt, fov) in enumerate(combos):
@@ -510,12 +511,12 @@ def sweep_apertures(heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.0, 30.0), fo
                                body=BodyBox.from_config(cfg))
         live = np.ones(cfg.n_diodes, bool)
         live[list(dead)] = False
-        alb = irr.albedo_w_m2[sunlit][:, live].sum()
-        row["albedo_fraction"] = float(alb / irr.total_w_m2[sunlit][:, live].sum())
+        alb = irr.albedo_w_m2[lit_epochs][:, live].sum()
+        row["albedo_fraction"] = float(alb / irr.total_w_m2[lit_epochs][:, live].sum())
         e_p = measure(irr.total_w_m2, diode=diode, dead=dead)
         est = run_estimators(e_p, cfg.normals, float(fov), e_s0=DIODES[diode].e_s0_w_m2, live=live,
                              which=estimators)
-        table = error_table(errors(est, g.sun_dir_body), sunlit)
+        table = error_table(errors(est, g.sun_dir_body), lit_epochs)
         for t in table:
             row[f"{t['estimator']}_mean_deg"] = t["mean_deg"]
             row[f"{t['estimator']}_p95_deg"] = t["p95_deg"]

@@ -8,6 +8,7 @@ from estimators import ESTIMATORS
 from estimators.advanced import model_albedo_estimate
 from estimators.metrics import angle_error_deg
 from scenes.config import SatelliteConfig
+from simcore.environment import eclipse
 from simcore.environment.attitude import tumble
 from simcore.environment.epochs import Epochs
 from simcore.environment.geometry import compute_geometry
@@ -36,8 +37,8 @@ def evaluate_cross_map(config="tilt20_fov70", *, start_s=18000, stop_s=28000, da
                        diode="BPW34FS", dead=None, backend="auto", return_errors=False):
     """Return a table (list of dicts) of sunlit Sun-vector errors with truth and on-board albedo from different maps.
 
-    One row per (truth map, on-board map, estimator): ``n_sunlit`` (epochs in the thesis'
-    cylindrical sunlight, eqs. 4.6-4.10), ``n_invalid`` (sunlit epochs without an estimate),
+    One row per (truth map, on-board map, estimator): ``n_sunlit`` (sunlit epochs,
+    :func:`simcore.environment.eclipse.sunlit`), ``n_invalid`` (sunlit epochs without an estimate),
     ``mean_deg``, ``p95_deg``, ``max_deg`` (over the sunlit valid epochs). Estimators: WLS
     (eq. 4.30), Sun-Albedo-Sun from WLS and from Albedo-Sun (thesis sec. 4.3.4),
     :func:`estimators.advanced.smart_select_estimate` (it needs no prediction; for a
@@ -96,7 +97,7 @@ def evaluate_cross_map(config="tilt20_fov70", *, start_s=18000, stop_s=28000, da
     s_true = geometry.sun_dir_body
     # The first lag_steps samples have no previous attitude (with computed truth: the extra
     # leading samples); they are left out for every estimator alike.
-    sunlit = np.asarray(geometry.sunlit_cylindrical, dtype=bool) & (np.arange(len(geometry)) >= lag_steps)
+    sunlit = eclipse.sunlit(geometry.illumination) & (np.arange(len(geometry)) >= lag_steps)
     live = cfg.live
     ests = _estimators(cfg.normals, float(fov[0]), e_s0, live)
     preds = {}
