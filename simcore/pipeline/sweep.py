@@ -54,7 +54,7 @@ def run_sweep(points, *, scheduler=None, workers=2, log=print):
         client, cluster = Client(scheduler), None
     else:
         cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=":0")   # any free port: never "8787 in use"
         client = Client(cluster)
     try:
         futures = {client.submit(_run_point, p, pure=False): p for p in todo}

@@ -386,7 +386,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         weights = np.where(weights.any(axis=0), weights, True).astype(float)   # umbra by points: plain mean
     partial_earth = (weights != weights[:1]).any(axis=0) if len(dirs) > 1 else np.zeros(weights.shape[1], bool)
     weights = weights / weights.sum(axis=0)
-    resp = np.stack([[r.response(d @ f.T) for d in dirs] for r, f in zip(resps, frames)], axis=2)  # (M, N, K)
+    resp = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2)   # (M, N, K)
     kink = np.zeros(resp.shape[1:], bool)
     if len(dirs) > 1 and refine_rings > rings:
         # Probe the disc's very edge too: the quadrature rings stop short of it.
@@ -394,12 +394,12 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
         probe = np.concatenate([dirs, rim])
         for k, (r, f) in enumerate(zip(resps, frames)):
-            pr = np.stack([r.response(d @ f.T) for d in probe])
+            pr = r.response(probe @ f.T)
             kink[:, k] = (pr == 0).any(axis=0) & (pr > 0).any(axis=0)
             # The Earth's limb across the disc: its weights are then a coarse 37-point picture of the cut.
             kink[:, k] |= partial_earth & (pr > 0).any(axis=0)
             if isinstance(r, _resp.WellAperture) and r.height_m > 0:
-                lit = np.stack([r.lit_fraction(d @ f.T) for d in probe])
+                lit = r.lit_fraction(probe @ f.T)
                 kink[:, k] |= (lit == 1).any(axis=0) & (lit < 1).any(axis=0)
 
     def refined(out):
@@ -422,7 +422,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     # disc there alone. Where the well lets no light through, visibility is undefined (NaN).
     n_ring = 6 * rings
     probe = [0] + list(range(len(dirs) - n_ring, len(dirs), max(rings, 1))) if len(dirs) > 1 else [0]
-    v_probe = np.stack([vis(dirs[i]) for i in probe])
+    v_probe = vis(dirs[probe].reshape(-1, 3)).reshape(len(probe), *resp.shape[1:])
     undefined = np.isnan(v_probe).any(axis=0)
     lo = np.where(np.isnan(v_probe), np.inf, v_probe).min(axis=0)
     hi = np.where(np.isnan(v_probe), -np.inf, v_probe).max(axis=0)
@@ -431,8 +431,10 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     edge = (resp > 0).any(axis=0) & ((seen & (hi > lo)) | partial | undefined)
     v_all = np.broadcast_to(np.where(seen, lo, 1.0), resp.shape).copy()
     if edge.any() and len(dirs) > 1:
-        for i in range(len(dirs)):
-            v_all[i][edge] = vis(dirs[i], only=edge)[edge]
+        # every disc point of the edge diode-epochs in one batch
+        m = len(dirs)
+        v = vis(dirs.reshape(-1, 3), only=np.broadcast_to(edge, (m, *edge.shape)).reshape(-1, edge.shape[1]))
+        v_all = np.where(edge[None], v.reshape(resp.shape), v_all)
     return refined(np.einsum("mn,mnk->nk", weights, resp * np.nan_to_num(v_all, nan=1.0)))
 
 

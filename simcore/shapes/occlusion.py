@@ -21,9 +21,6 @@ renderer sees them.
 """
 import numpy as np
 
-# The 12 edges of a box as pairs of corner indices, corners indexed by bits (x, y, z) = (i & 1, i & 2, i & 4).
-_EDGES = [(a, a | bit) for bit in (1, 2, 4) for a in range(8) if not a & bit]
-_CORNER_SIGNS = [(1 if i & 1 else -1, 1 if i & 2 else -1, 1 if i & 4 else -1) for i in range(8)]
 
 
 def box_hit(origins, dirs, half_m):
@@ -42,10 +39,6 @@ def box_hit(origins, dirs, half_m):
     t_in = lo.max(axis=-1)
     t_out = hi.min(axis=-1)
     return (t_in <= t_out) & (t_out > 0)
-
-
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def convex_hull(points):
@@ -68,84 +61,93 @@ def convex_hull(points):
     return lower[:-1] + upper[:-1]
 
 
-def _clip(poly, axis, bound, keep_below):
-    """Clip a polygon (list of (x, y)) to the half-plane x[axis] <= bound (keep_below) or >= bound."""
-    out = []
-    m = len(poly)
-    for i in range(m):
-        a, b = poly[i], poly[(i + 1) % m]
-        ina = a[axis] <= bound if keep_below else a[axis] >= bound
-        inb = b[axis] <= bound if keep_below else b[axis] >= bound
-        if ina:
-            out.append(a)
-        if ina != inb:
-            t = (bound - a[axis]) / (b[axis] - a[axis])
-            out.append((a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])))
-    return out
+def _clip_half_plane(poly, count, a, b, c):
+    """Return (poly, count) of convex polygons (T, V, 2) with ``count`` (T,) vertices each, clipped to
+    the half-planes ``a x + b y <= c`` (T,) (Sutherland-Hodgman, all polygons at once)."""
+    T, V = poly.shape[:2]
+    idx = np.arange(V)[None, :]
+    valid = idx < count[:, None]
+    nxt = np.where(idx + 1 < count[:, None], idx + 1, 0)
+    p0 = poly
+    p1 = np.take_along_axis(poly, nxt[..., None], axis=1)
+    f0 = a[:, None] * p0[..., 0] + b[:, None] * p0[..., 1] - c[:, None]
+    f1 = a[:, None] * p1[..., 0] + b[:, None] * p1[..., 1] - c[:, None]
+    keep = valid & (f0 <= 0)
+    cut = valid & ((f0 <= 0) != (f1 <= 0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(cut, f0 / np.where(cut, f0 - f1, 1.0), 0.0)
+    inter = p0 + s[..., None] * (p1 - p0)
+    out = np.stack([p0, inter], axis=2).reshape(T, 2 * V, 2)      # vertex i, then its edge's crossing
+    mask = np.stack([keep, cut], axis=2).reshape(T, 2 * V)
+    order = np.argsort(~mask, axis=1, kind="stable")
+    count = mask.sum(axis=1)
+    width = max(int(count.max()) if T else 0, 1)
+    return np.take_along_axis(out, order[:, :width, None], axis=1), count
 
 
-def _area(poly):
-    if len(poly) < 3:
-        return 0.0
-    twice = 0.0
-    for i in range(len(poly)):
-        (x0, y0), (x1, y1) = poly[i], poly[(i + 1) % len(poly)]
-        twice += x0 * y1 - x1 * y0
-    return 0.5 * abs(twice)
+def _polygon_area(poly, count):
+    """Return the areas (T,) of polygons (T, V, 2) with ``count`` vertices each (shoelace; 0 below 3)."""
+    V = poly.shape[1]
+    idx = np.arange(V)[None, :]
+    nxt = np.where(idx + 1 < count[:, None], idx + 1, 0)
+    p1 = np.take_along_axis(poly, nxt[..., None], axis=1)
+    cross = np.where(idx < count[:, None], poly[..., 0] * p1[..., 1] - p1[..., 0] * poly[..., 1], 0.0)
+    return np.where(count >= 3, 0.5 * np.abs(cross.sum(axis=1)), 0.0)
 
 
-def shadow_polygon(position_m, frame, d, half_m):
-    """Return the box's shadow on the diode plane along ``d`` as a convex polygon, a list of (u, v)
-    points about the diode's centre (empty when no part of the box is in front of the plane)."""
-    p = [float(x) for x in position_m]
-    u, v, n = ([float(x) for x in row] for row in frame)
-    d = [float(x) for x in d]
-    hx, hy, hz = (float(x) for x in half_m)
-    corners = [(sx * hx, sy * hy, sz * hz) for sx, sy, sz in _CORNER_SIGNS]
-    s = [_dot((c[0] - p[0], c[1] - p[1], c[2] - p[2]), n) for c in corners]   # height above the diode plane
-    pts = [corners[i] for i in range(8) if s[i] >= 0]
-    for a, b in _EDGES:
-        if (s[a] > 0) != (s[b] > 0) and s[a] != s[b]:
-            t = s[a] / (s[a] - s[b])
-            ca, cb = corners[a], corners[b]
-            pts.append((ca[0] + t * (cb[0] - ca[0]), ca[1] + t * (cb[1] - ca[1]), ca[2] + t * (cb[2] - ca[2])))
-    if not pts:
-        return []
-    dn = _dot(d, n)
-    out = []
-    for y in pts:
-        h = _dot((y[0] - p[0], y[1] - p[1], y[2] - p[2]), n) / dn
-        x = (y[0] - h * d[0] - p[0], y[1] - h * d[1] - p[1], y[2] - h * d[2] - p[2])
-        out.append((_dot(x, u), _dot(x, v)))
-    return convex_hull(out)
+def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m):
+    """Return the lit fractions (T,) of T diodes, each toward its own direction: the well's overlap
+    minus the body box's shadow, exact.
+
+    ``aperture_params`` (T, 5): half diode sides, half opening sides and well height (m) of each
+    diode; ``frames`` (T, 3, 3) rows (u, v, n); ``positions_m`` (T, 3) diode centres; ``d_body`` (T, 3)
+    unit directions toward the source; ``half_m`` the box's half extents (body frame, centred).
+
+    A point ``x = (X, Y)`` of the diode plane is shadowed when its ray ``p + X u + Y v + t d`` meets
+    the box at some ``t >= 0``. Each face of the box and the plane itself (``t >= 0``) bound ``t`` from
+    one side by a linear function of ``x``; eliminating ``t`` (Fourier-Motzkin) leaves the shadow as
+    the intersection of the 12 half-planes "every lower bound <= every upper bound". The lit
+    rectangle of the well is clipped by them and its area is the shadowed part.
+    """
+    ap = np.asarray(aperture_params, float)
+    F = np.asarray(frames, float)
+    p = np.asarray(positions_m, float)
+    d = np.asarray(d_body, float)
+    half = np.asarray(half_m, float)
+    T = len(d)
+    u, v, n = F[:, 0], F[:, 1], F[:, 2]
+    du, dv, dn = (np.einsum("tj,tj->t", d, w) for w in (u, v, n))
+    ax, ay, wx, wy, h = ap.T
+    front = dn > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sx = np.where(front, -h * du / np.where(front, dn, 1.0), 0.0)
+        sy = np.where(front, -h * dv / np.where(front, dn, 1.0), 0.0)
+    x0, x1 = np.maximum(-ax, sx - wx), np.minimum(ax, sx + wx)
+    y0, y1 = np.maximum(-ay, sy - wy), np.minimum(ay, sy + wy)
+    lit = np.where(front, np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None), 0.0)
+    poly = np.stack([np.stack([x0, y0], 1), np.stack([x1, y0], 1), np.stack([x1, y1], 1), np.stack([x0, y1], 1)], 1)
+    count = np.where(lit > 0, 4, 0)
+    # Constraints alpha X + beta Y + gamma t <= c on (X, Y, t): the box's faces +-e_k (the face the
+    # direction runs toward bounds t from above, gamma >= 0; its opposite from below), and t >= 0.
+    s = np.where(d >= 0, 1.0, -1.0)                                     # (T, 3)
+    upper = [(s[:, k] * u[:, k], s[:, k] * v[:, k], s[:, k] * d[:, k], half[k] - s[:, k] * p[:, k]) for k in range(3)]
+    lower = [(-s[:, k] * u[:, k], -s[:, k] * v[:, k], -s[:, k] * d[:, k], half[k] + s[:, k] * p[:, k])
+             for k in range(3)]
+    zero = np.zeros(T)
+    lower.append((zero, zero, -np.where(front, dn, 1.0), zero))
+    for ai, bi, gi, ci in lower:            # gi <= 0: t >= (ci - ai X - bi Y) / gi
+        for aj, bj, gj, cj in upper:        # gj >= 0: t <= (cj - aj X - bj Y) / gj
+            poly, count = _clip_half_plane(poly, count, ai * gj - aj * gi, bi * gj - bj * gi, ci * gj - cj * gi)
+    shadow = _polygon_area(poly, count)
+    return np.where(front, np.clip(lit - shadow, 0.0, None) / (4 * ax * ay), 0.0)
 
 
 def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
     """Return the lit fraction (0..1) of one diode for one direction: its well's overlap minus the
-    body box's shadow, exact."""
-    u, v, n = frame
-    d = d_body
-    dn = float(d[0] * n[0] + d[1] * n[1] + d[2] * n[2])
-    if dn <= 0:
-        return 0.0
-    du = float(d[0] * u[0] + d[1] * u[1] + d[2] * u[2])
-    dv = float(d[0] * v[0] + d[1] * v[1] + d[2] * v[2])
-    ax, ay = aperture.diode_x_m / 2, aperture.diode_y_m / 2
-    wx, wy = aperture.opening_x_m / 2, aperture.opening_y_m / 2
-    sx, sy = -aperture.height_m * du / dn, -aperture.height_m * dv / dn
-    x0, x1 = max(-ax, sx - wx), min(ax, sx + wx)
-    y0, y1 = max(-ay, sy - wy), min(ay, sy + wy)
-    if x1 <= x0 or y1 <= y0:
-        return 0.0
-    lit = (x1 - x0) * (y1 - y0)
-    poly = shadow_polygon(position_m, frame, d, half_m)
-    if len(poly) >= 3:
-        for axis, bound, below in ((0, x1, True), (0, x0, False), (1, y1, True), (1, y0, False)):
-            poly = _clip(poly, axis, bound, below)
-            if not poly:
-                break
-        lit -= _area(poly)
-    return max(lit, 0.0) / (4 * ax * ay)
+    body box's shadow, exact (:func:`lit_fractions_with_box` for one)."""
+    params = [[aperture.diode_x_m / 2, aperture.diode_y_m / 2, aperture.opening_x_m / 2,
+               aperture.opening_y_m / 2, aperture.height_m]]
+    return float(lit_fractions_with_box(params, [frame], [position_m], [d_body], half_m)[0])
 
 
 def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, half_m, only=None):
@@ -164,9 +166,10 @@ def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, hal
     own = np.stack([apertures[k].lit_fraction(d @ np.asarray(frames[k]).T) for k in range(K)], axis=1)
     vis[todo & (own <= 0)] = np.nan
     todo &= own > 0
-    frame_l = [[[float(x) for x in row] for row in f] for f in frames]
-    pos_l = [[float(x) for x in p] for p in positions_m]
-    d_l = d.tolist()
-    for n, k in zip(*np.nonzero(todo)):
-        vis[n, k] = lit_fraction_with_box(apertures[k], frame_l[k], pos_l[k], d_l[n], half_m) / own[n, k]
+    n_idx, k_idx = np.nonzero(todo)
+    params = np.array([[a.diode_x_m / 2, a.diode_y_m / 2, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
+                       for a in apertures])
+    frames = np.asarray(frames, float)
+    vis[n_idx, k_idx] = lit_fractions_with_box(params[k_idx], frames[k_idx], np.asarray(positions_m, float)[k_idx],
+                                               d[n_idx], half_m) / own[n_idx, k_idx]
     return vis
