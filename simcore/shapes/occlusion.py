@@ -63,26 +63,36 @@ def convex_hull(points):
 
 def _clip_half_plane(poly, count, a, b, c):
     """Return (poly, count) of convex polygons (T, V, 2) with ``count`` (T,) vertices each, clipped to
-    the half-planes ``a x + b y <= c`` (T,) (Sutherland-Hodgman, all polygons at once)."""
+    the half-planes ``a x + b y <= c`` (T,) (Sutherland-Hodgman, all polygons at once; those the
+    half-plane holds whole, most of them, are left as they are)."""
     T, V = poly.shape[:2]
     idx = np.arange(V)[None, :]
     valid = idx < count[:, None]
-    nxt = np.where(idx + 1 < count[:, None], idx + 1, 0)
-    p0 = poly
-    p1 = np.take_along_axis(poly, nxt[..., None], axis=1)
-    f0 = a[:, None] * p0[..., 0] + b[:, None] * p0[..., 1] - c[:, None]
-    f1 = a[:, None] * p1[..., 0] + b[:, None] * p1[..., 1] - c[:, None]
-    keep = valid & (f0 <= 0)
-    cut = valid & ((f0 <= 0) != (f1 <= 0))
+    f = a[:, None] * poly[..., 0] + b[:, None] * poly[..., 1] - c[:, None]
+    rows = np.flatnonzero((valid & (f > 0)).any(axis=1))
+    if rows.size == 0:
+        return poly, count
+    p0, f0, ok, n = poly[rows], f[rows], valid[rows], count[rows]
+    nxt = np.where(idx + 1 < n[:, None], idx + 1, 0)
+    p1 = np.take_along_axis(p0, nxt[..., None], axis=1)
+    f1 = np.take_along_axis(f0, nxt, axis=1)
+    keep = ok & (f0 <= 0)
+    cut = ok & ((f0 <= 0) != (f1 <= 0))
     with np.errstate(divide="ignore", invalid="ignore"):
         s = np.where(cut, f0 / np.where(cut, f0 - f1, 1.0), 0.0)
-    inter = p0 + s[..., None] * (p1 - p0)
-    out = np.stack([p0, inter], axis=2).reshape(T, 2 * V, 2)      # vertex i, then its edge's crossing
-    mask = np.stack([keep, cut], axis=2).reshape(T, 2 * V)
-    order = np.argsort(~mask, axis=1, kind="stable")
-    count = mask.sum(axis=1)
-    width = max(int(count.max()) if T else 0, 1)
-    return np.take_along_axis(out, order[:, :width, None], axis=1), count
+    cand = np.stack([p0, p0 + s[..., None] * (p1 - p0)], axis=2).reshape(len(rows), 2 * V, 2)
+    mask = np.stack([keep, cut], axis=2).reshape(len(rows), 2 * V)
+    slot = np.cumsum(mask, axis=1) - 1                       # where each kept point goes, in order
+    width = V + 1                                            # a convex clip adds at most one vertex
+    out = np.zeros((T, width, 2))
+    out[:, :V] = poly
+    clipped = np.zeros((len(rows), width + 1, 2))
+    r, k = np.nonzero(mask)
+    clipped[r, slot[r, k]] = cand[r, k]
+    out[rows] = clipped[:, :width]
+    count = count.copy()
+    count[rows] = mask.sum(axis=1)
+    return out, count
 
 
 def _polygon_area(poly, count):
