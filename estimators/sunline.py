@@ -283,11 +283,14 @@ class SunlineUKF(_SunlineFilter):
 FILTERS = {"ekf": SunlineEKF, "ukf": SunlineUKF}
 
 
-def run_sunline_filter(kind, y, normals, t_s, *, fov_deg, x0, P0, sigma_meas, gyro_rad_s=None, **kw):
+def run_sunline_filter(kind, y, normals, t_s, *, fov_deg, x0, P0, sigma_meas, gyro_rad_s=None, update_mask=None,
+                       **kw):
     """Return the filter's history over a time series: a dict of arrays with time leading.
 
     ``kind`` 'ekf' or 'ukf'; ``y`` (N, K) normalised diode readings (E_p / E_S0, NaN = missing);
-    ``t_s`` (N,) seconds; ``gyro_rad_s`` (N, 3) or None; other keywords go to the filter class.
+    ``t_s`` (N,) seconds; ``gyro_rad_s`` (N, 3) or None; ``update_mask`` (N,) bool or None: epochs whose
+    diode readings update the filter (e.g. False in eclipse, where a diode lit by the Earth alone would
+    pass the reading threshold; the gyro still updates); other keywords go to the filter class.
     Returns ``sun_dir_body`` (N, 3) unit, ``state`` (N, 6), ``P`` (N, 6, 6), ``rate_rad_s``
     (N, 3), ``used`` and ``rejected`` (N, K) bool (diodes taken / excluded by the innovation
     test at each step). The first sample updates the initial state without a prediction.
@@ -304,6 +307,11 @@ def run_sunline_filter(kind, y, normals, t_s, *, fov_deg, x0, P0, sigma_meas, gy
             raise ValueError(f"gyro_rad_s must be (N, 3) rad/s, got shape {gyro_rad_s.shape}")
     f = FILTERS[kind](normals, fov_deg=fov_deg, x0=x0, P0=P0, sigma_meas=sigma_meas, **kw)
     n, k = y.shape
+    if update_mask is not None:
+        update_mask = np.asarray(update_mask, bool)
+        if update_mask.shape != (n,):
+            raise ValueError(f"update_mask must be (N,) = ({n},) bool, got shape {update_mask.shape}")
+        y = np.where(update_mask[:, None], y, np.nan)
     state = np.empty((n, STATE_DIM))
     cov = np.empty((n, STATE_DIM, STATE_DIM))
     used = np.zeros((n, k), bool)

@@ -6,6 +6,11 @@ eqs. 4.21-4.25), and then into the sun-line filters of :mod:`estimators.sunline`
 same readings, the thesis' WLS and Sun-Albedo-Sun estimators. :func:`filter_run` returns the JSON
 summary that ``sunsim estimate RUN.nc --filter sunline-ekf|sunline-ukf`` prints.
 
+The filters start at the first sunlit epoch with a valid WLS estimate (from it, with zero rate)
+and take diode readings only in full Sun (illumination = 1, from the run's orbit and eclipse
+model, which flight software has too): in eclipse and penumbra they only propagate, because a
+diode lit by the Earth alone would pass the reading threshold (every lit diode does at FOV 90).
+
 Errors are taken over the sunlit epochs (illumination = 1):
 
 - ``sun_error_deg``: angle between the estimated and the true Sun vector (body frame);
@@ -148,8 +153,7 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
     :class:`~simcore.sensor_errors.SensorErrors`; ``faults`` a sequence of
     :class:`~simcore.sensor_errors.Fault`; ``gyro_sigma_deg_s``: feed a gyro reading the true rate
     plus white noise of that standard deviation (deg/s); ``sigma_meas`` the filters' diode noise
-    (normalised; default in the module docstring). The filter starts at the first epoch with a valid
-    WLS estimate, from that estimate and zero rate. ``return_series=True`` also returns a dict of the
+    (normalised; default in the module docstring). Start and eclipse: the module docstring. ``return_series=True`` also returns a dict of the
     time series (estimates, rejections, true values).
     """
     filt = FILTER_KINDS.get(kind, kind)
@@ -173,10 +177,11 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
 
     wls, wls_ok = wls_estimate(e_p, normals, fov_deg=fov, e_s0=e_s0, live=live)
     sas, _ = sun_albedo_sun_estimate(e_p, normals, fov_deg=fov, e_s0=e_s0, live=live)
-    if not wls_ok.any():
-        raise ValueError("no epoch of this run has a valid WLS estimate to start the filter from "
+    start_ok = wls_ok & sunlit
+    if not start_ok.any():
+        raise ValueError("no sunlit epoch of this run has a valid WLS estimate to start the filter from "
                          "(is the whole run in eclipse?)")
-    i0 = int(np.argmax(wls_ok))
+    i0 = int(np.argmax(start_ok))
     if sigma_meas is None:
         lsb = chain.lsb_w_m2 / e_s0
         sigma_meas = float(np.sqrt(errors.noise_sigma ** 2 + lsb ** 2 / 12.0 + EARTH_LIGHT_SIGMA ** 2))
@@ -188,6 +193,7 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
     res = run_sunline_filter(filt, e_p[i0:] / e_s0, normals, t[i0:], fov_deg=fov,
                              x0=np.concatenate([wls[i0], np.zeros(3)]), P0=p0, sigma_meas=sigma_meas,
                              gyro_rad_s=None if gyro is None else gyro[i0:], gate_sigma=gate_sigma,
+                             update_mask=sunlit[i0:],
                              gyro_sigma_rad_s=None if gyro_sigma_deg_s is None else np.radians(gyro_sigma_deg_s),
                              q_rate=q_rate, q_sun=q_sun, live=live)
     n, k = e_p.shape

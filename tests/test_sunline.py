@@ -178,3 +178,14 @@ def test_bad_filter_input():
         SunlineEKF(NORMALS, fov_deg=FOV, x0=np.ones(6), P0=P0, sigma_meas=-0.1)
     with pytest.raises(ValueError, match="positive-definite"):
         SunlineEKF(NORMALS, fov_deg=FOV, x0=np.ones(6), P0=-P0, sigma_meas=SIGMA)
+
+
+def test_update_mask_only_propagates_where_false():
+    # no readings taken: the state follows eq. (1) from x0 exactly (the Sun vector turns at the rate guess)
+    t, y, s, s_init = scenario(5, n=50)
+    x0 = np.r_[s_init, W_TRUE]
+    r = run_sunline_filter("ekf", y, NORMALS, t, fov_deg=FOV, x0=x0, P0=P0, sigma_meas=SIGMA,
+                           update_mask=np.zeros(50, bool))
+    np.testing.assert_allclose(r["state"][:, :3], Rotation.from_rotvec(-np.outer(t, W_TRUE)).apply(s_init),
+                               atol=1e-12)
+    assert not r["used"].any()
