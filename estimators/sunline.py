@@ -80,10 +80,11 @@ def process_noise(x, dt_s, q_rate, q_sun):
     return q
 
 
-def select_sun_diodes(y, fov_deg, live=None):
-    """Return the mask (K,) of diodes whose normalised reading y (K,) is >= cos(FOV) and finite (and live)."""
+def select_sun_diodes(y, fov_deg, live=None, use_threshold=0.0):
+    """Return the mask (K,) of diodes whose normalised reading y (K,) is finite (and live) and at least
+    max(cos(FOV), use_threshold) (Basilisk's ``sensorUseThresh``)."""
     y = np.asarray(y, dtype=float)
-    sel = np.isfinite(y) & (y >= np.cos(np.radians(fov_deg)))
+    sel = np.isfinite(y) & (y >= max(np.cos(np.radians(fov_deg)), use_threshold))
     if live is not None:
         sel &= np.asarray(live, bool)
     return sel
@@ -186,6 +187,9 @@ class _SunlineFilter:
     ----------
     normals : (K, 3) diode normals, body frame (the rows of H, eq. 3).
     fov_deg : the diodes' FOV; readings >= cos(FOV) are used (:func:`select_sun_diodes`).
+    use_threshold : a floor on the readings used (normalised), Basilisk's ``sensorUseThresh``; at
+        FOV 90 cos(FOV) = 0 lets a dark diode's noise in, where eq. (3) would predict n . s < 0
+        for a reading that cannot go below 0. Basilisk's scenarios use 5 sigma of the noise.
     x0, P0 : initial state (6,) = (s, omega [rad/s]) and covariance (6, 6).
     sigma_meas : scalar or (K,), standard deviation of each reading (normalised units): noise,
         quantisation and whatever the model n . s leaves out (the Earth's light).
@@ -200,7 +204,7 @@ class _SunlineFilter:
     """
 
     def __init__(self, normals, *, fov_deg, x0, P0, sigma_meas, q_rate=1e-13, q_sun=0.0, gate_sigma=5.0,
-                 gyro_sigma_rad_s=None, live=None):
+                 gyro_sigma_rad_s=None, live=None, use_threshold=0.0):
         self.normals = np.asarray(normals, dtype=float)
         if self.normals.ndim != 2 or self.normals.shape[1] != 3:
             raise ValueError(f"normals must be (K, 3) unit vectors in the body frame, got shape {self.normals.shape}")
@@ -208,6 +212,9 @@ class _SunlineFilter:
         if not 0 < fov_deg <= 90:
             raise ValueError(f"fov_deg must lie in (0, 90], got {fov_deg}")
         self.fov_deg = float(fov_deg)
+        if not (np.isfinite(use_threshold) and use_threshold >= 0):
+            raise ValueError(f"use_threshold must be a reading >= 0 (normalised), got {use_threshold}")
+        self.use_threshold = float(use_threshold)
         self.x = np.array(x0, dtype=float).reshape(STATE_DIM)
         self.P = np.array(P0, dtype=float).reshape(STATE_DIM, STATE_DIM)
         if not np.all(np.isfinite(self.P)) or np.any(np.linalg.eigvalsh(0.5 * (self.P + self.P.T)) <= 0):
@@ -233,7 +240,7 @@ class _SunlineFilter:
     def update(self, y, gyro_rad_s=None):
         """Update with the normalised diode readings y (K,) (and a gyro rate (3,) rad/s when given)."""
         y = np.asarray(y, dtype=float)
-        sel = select_sun_diodes(y, self.fov_deg, self.live)
+        sel = select_sun_diodes(y, self.fov_deg, self.live, self.use_threshold)
         self.used = np.zeros(y.size, bool)
         self.rejected = np.zeros(y.size, bool)
         if sel.any():

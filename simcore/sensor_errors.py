@@ -243,7 +243,8 @@ def apply_errors(u_true, t_s, errors=None, faults=(), rng=None):
     ``u_true`` in units of the normal-Sun reading, ``t_s`` (N,) seconds since the run's start at a
     constant step, ``errors`` a :class:`SensorErrors` (None: none), ``faults`` a sequence of
     :class:`Fault`. ``rng`` defaults to ``np.random.default_rng(errors.seed)``. The noise
-    processes are drawn in a fixed order (white, Gauss-Markov, walk, fault noise), each (N, K).
+    processes are drawn in a fixed order (white always, then Gauss-Markov, walk and fault noise when
+    enabled), each (N, K): the same SPEC and seed give the same numbers.
     """
     u = np.array(u_true, dtype=float)
     if u.ndim != 2:

@@ -44,6 +44,7 @@ from simcore.sensor_errors import (apply_errors, check_faults, kelly_fit, misali
 # the albedo irradiance (68 W/m^2 at full scale) on a diode that sees the Earth well inside its FOV
 # at 665 km (see the run files' albedo component); larger Earth light is gated out.
 EARTH_LIGHT_SIGMA = 0.05
+USE_THRESHOLD_SIGMAS = 5.0        # readings used from 5 sigma of the noise up (Basilisk scenarios' sensorUseThresh)
 INIT_POS_VAR = 0.25               # initial variance of each Sun-vector component (normalised units^2)
 INIT_RATE_SIGMA_RAD_S = np.radians(2.0)   # initial rate standard deviation per axis (2 deg/s)
 
@@ -182,9 +183,10 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
         raise ValueError("no sunlit epoch of this run has a valid WLS estimate to start the filter from "
                          "(is the whole run in eclipse?)")
     i0 = int(np.argmax(start_ok))
+    lsb = chain.lsb_w_m2 / e_s0
+    sigma_noise = float(np.sqrt(errors.noise_sigma ** 2 + lsb ** 2 / 12.0))
     if sigma_meas is None:
-        lsb = chain.lsb_w_m2 / e_s0
-        sigma_meas = float(np.sqrt(errors.noise_sigma ** 2 + lsb ** 2 / 12.0 + EARTH_LIGHT_SIGMA ** 2))
+        sigma_meas = float(np.hypot(sigma_noise, EARTH_LIGHT_SIGMA))
     gyro = None
     if gyro_sigma_deg_s is not None:
         rng = np.random.default_rng([seed, 2])
@@ -193,7 +195,7 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
     res = run_sunline_filter(filt, e_p[i0:] / e_s0, normals, t[i0:], fov_deg=fov,
                              x0=np.concatenate([wls[i0], np.zeros(3)]), P0=p0, sigma_meas=sigma_meas,
                              gyro_rad_s=None if gyro is None else gyro[i0:], gate_sigma=gate_sigma,
-                             update_mask=sunlit[i0:],
+                             update_mask=sunlit[i0:], use_threshold=USE_THRESHOLD_SIGMAS * sigma_noise,
                              gyro_sigma_rad_s=None if gyro_sigma_deg_s is None else np.radians(gyro_sigma_deg_s),
                              q_rate=q_rate, q_sun=q_sun, live=live)
     n, k = e_p.shape
