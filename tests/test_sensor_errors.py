@@ -7,6 +7,7 @@ rejects a deliberately wrong input.
 import numpy as np
 import pytest
 
+from simcore.constants import E_SUN_W_M2
 from simcore.sensor import DIODES, SensorChain
 from simcore.sensor_errors import (FAULT_KINDS, FAULT_NOISE_BOUND, Fault, SensorErrors, apply_errors,
                                    bounded_random_walk, gauss_markov, kelly_fit, parse_faults,
@@ -171,7 +172,7 @@ def test_stuck_max_through_the_adc_reads_e_s0():
     # through sunsim's chain (eqs. 4.21-4.25) a STUCK_MAX diode reads E_S0 to within half an LSB
     sensed = apply_errors(U, T, SensorErrors(), [Fault(0, "STUCK_MAX", ONSET)])
     chain = SensorChain()
-    e_p = chain.measure(sensed * 1366.1)
+    e_p = chain.measure(sensed * E_SUN_W_M2)
     assert np.all(np.abs(e_p[T >= ONSET, 0] - DIODES["BPW34FS"].e_s0_w_m2) <= 0.5 * chain.lsb_w_m2 + 1e-9)
 
 

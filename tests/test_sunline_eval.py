@@ -48,7 +48,7 @@ def test_stuck_max_is_excluded_within_10_s_and_the_error_recovers(ds, kind):
     assert out["first_rejection_after_onset_s"][0] is not None
     assert out["first_rejection_after_onset_s"][0] <= 10.0
     # from then on the stuck diode is out whenever its reading is far from the truth
-    truth = ds["irradiance"].values.sum(axis=-1)[:, STUCK] / 1366.1
+    truth = ds["irradiance"].values.sum(axis=-1)[:, STUCK] / ds.attrs["e_sun_w_m2"]
     far = (t >= ONSET_S + 10) & (np.abs(1.0 - truth) > 0.5)
     assert far.sum() > 100
     assert s1["rejected"][far, STUCK].all()
@@ -114,7 +114,8 @@ def test_misalignment_moves_the_direct_part_by_the_cosine_law(ds):
     angle_nom = np.degrees(np.arccos(np.clip(sun @ normals_nom.T, -1, 1)))
     inside = (angle_true < 60) & (angle_nom < 60)
     assert inside.sum() > 1000
-    expected = (sun @ (normals_true - normals_nom).T)[inside]
+    sun_factor = (ds["sun_scale"].values * ds["illumination"].values)[:, None]    # 1 here; (1 AU / r)^2 if scaled
+    expected = (sun @ (normals_true - normals_nom).T * sun_factor)[inside]
     np.testing.assert_allclose((u - u0)[inside], expected, atol=1e-12)
     # the angles moved by about a degree (Rayleigh, scale 1 deg: mean 1.25 deg)
     moved = np.degrees(np.arccos(np.clip(np.sum(normals_true * normals_nom, axis=1), -1, 1)))
@@ -123,4 +124,5 @@ def test_misalignment_moves_the_direct_part_by_the_cosine_law(ds):
     uk, _ = true_signals(ds, SensorErrors(kelly=0.1))
     irr = ds["irradiance"].values
     c = np.clip(sun @ normals_nom.T, 0, None)
-    np.testing.assert_allclose(uk * 1366.1, irr[..., 0] * (1 - np.exp(-c ** 2 / 0.1)) + irr[..., 1], rtol=1e-12)
+    np.testing.assert_allclose(uk * ds.attrs["e_sun_w_m2"], irr[..., 0] * (1 - np.exp(-c ** 2 / 0.1)) + irr[..., 1],
+                               rtol=1e-12)
