@@ -227,20 +227,29 @@ def _print_filter_summary(args, out):
     return 0
 
 
-def cmd_estimate(args):
-    """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
-    import os
-    from simcore.evaluate import evaluate_run
-    from simcore.run import open_run
-    from simcore.sensor_errors import check_faults, parse_faults, parse_sensor_errors
+def _filter_inputs(args):
+    """Return (sensor errors, faults) of ``estimate``'s filter options, or raise the user's mistake."""
+    from simcore.sensor_errors import parse_faults, parse_sensor_errors
     errors, faults = parse_sensor_errors(args.sensor_errors), parse_faults(args.faults)
     if (args.faults or args.sensor_errors or args.gyro is not None) and not args.filter:
         raise UserError("--faults, --sensor-errors and --gyro go with --filter (its summary lists WLS and "
                         "Sun-Albedo-Sun on the same readings); add --filter sunline-ekf")
     if args.gyro is not None and not args.gyro > 0:
         raise UserError(f"--gyro must be the gyro's noise standard deviation, > 0 deg/s; got {args.gyro}")
+    return errors, faults
+
+
+def cmd_estimate(args):
+    """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
+    errors, faults = _filter_inputs(args)
+
+    import os
+    from simcore.evaluate import evaluate_run
+    from simcore.run import open_run
     ds = open_run(args.run)
+
     if args.filter:
+        from simcore.sensor_errors import check_faults
         check_faults(faults, ds["t_s"].values, ds.sizes["diode"])
         return _print_filter_summary(args, ESTIMATE_FILTERS[args.filter](args, ds, errors, faults))
     errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
