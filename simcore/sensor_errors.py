@@ -10,7 +10,7 @@ that unit, so a Basilisk user's ``senBias = 0.01`` is ``bias=0.01`` here.
 Order of operations per sample (Basilisk ``CoarseSunSensor::UpdateState``):
 
 1. true value ``u``: the traced direct + albedo irradiance / E_sun, the direct part optionally
-   multiplied by the Kelly fit (below) and/or computed for a misaligned normal;
+   replaced by Basilisk's response model (below) and/or computed for a misaligned normal;
 2. ``u + bias + n_gm + n_walk + n_white`` (:func:`gauss_markov`, :func:`bounded_random_walk`,
    white noise);
 3. faults, from their onset to their end (:data:`FAULT_KINDS`);
@@ -19,10 +19,13 @@ Order of operations per sample (Basilisk ``CoarseSunSensor::UpdateState``):
 
 The result goes to sunsim's ADC (eqs. 4.21-4.25), which also clips at 0 and quantises.
 
-Kelly factor (Basilisk ``computeTrueOutput``): the cosine response ``c`` of a bare diode is
-multiplied by ``1 - exp(-c^p / kappa)`` (``kellyFactor`` kappa, ``kPower`` p, default 2); it
-lowers the response at grazing incidence the way a package or a cover does. kappa = 0 is the
-pure cosine.
+Basilisk's response and its Kelly factor (``computeTrueOutput``): a diode reads
+``c (1 - exp(-c^p / kappa))`` of the Sun for ``c = n . s >= cos(fov)`` and 0 beyond its FOV
+(``kellyFactor`` kappa, ``kPower`` p, default 2; kappa = 0 is the pure cut-off cosine), times the
+distance and shadow factors. The Kelly fit lowers the response at grazing incidence the way a
+package or a cover does. With ``kelly`` set (:func:`basilisk_response`), sunsim's traced direct
+irradiance, which sees the real well around each diode, is replaced by this model, so the two
+optics can be compared on the same orbit; the traced albedo is kept.
 
 Differences from Basilisk, on purpose:
 
@@ -69,6 +72,17 @@ def kelly_fit(cos_theta, kelly_factor, k_power=2.0):
     if kelly_factor <= 1e-10:
         return np.ones_like(c)
     return 1.0 - np.exp(-c ** k_power / kelly_factor)
+
+
+def basilisk_response(cos_theta, fov_rad, kelly_factor=0.0, k_power=2.0):
+    """Return Basilisk's CSS angular response (unitless, shape of ``cos_theta``): c x Kelly fit inside the FOV, else 0.
+
+    ``coarseSunSensor.cpp`` ``computeTrueOutput``: value = c if c >= cos(fov) else 0, then times
+    1 - exp(-c^p / kappa) (:func:`kelly_fit`). ``fov_rad`` broadcasts against ``cos_theta``.
+    """
+    c = np.asarray(cos_theta, dtype=float)
+    inside = c >= np.cos(np.asarray(fov_rad, dtype=float))
+    return np.where(inside, c, 0.0) * kelly_fit(c, kelly_factor, k_power)
 
 
 def gauss_markov(n, k, sigma, tau_s, dt_s, rng):
@@ -136,7 +150,7 @@ class SensorErrors:
     walk_bound: float = 0.0        # its bound (the walk stays within +-walk_bound)
     sat_min: float = 0.0           # saturation floor (Basilisk minOutput)
     sat_max: float = 1e6           # saturation ceiling (Basilisk maxOutput)
-    kelly: float = 0.0             # Kelly factor kappa (0: pure cosine)
+    kelly: float = None            # None: traced optics; a number: Basilisk's response, Kelly factor kappa
     kelly_power: float = 2.0       # Kelly power p (Basilisk kPower)
     misalign_deg: float = 0.0      # per-diode misalignment, Rayleigh scale of the angle (deg)
     seed: int = 0
@@ -148,10 +162,12 @@ class SensorErrors:
                 if int(v) != v:
                     raise ValueError(f"sensor errors: seed must be an integer, got {v}")
                 continue
+            if f.name == "kelly" and v is None:
+                continue
             if not np.isfinite(v):
                 raise ValueError(f"sensor errors: {f.name} must be a finite number, got {v}")
         for name in ("white", "gm_sigma", "walk_sigma", "misalign_deg", "kelly"):
-            if getattr(self, name) < 0:
+            if getattr(self, name) is not None and getattr(self, name) < 0:
                 raise ValueError(f"sensor errors: {name} must be >= 0 (a standard deviation or size), "
                                  f"got {getattr(self, name)}")
         if self.walk_bound < 0:
@@ -296,7 +312,8 @@ _ERROR_KEYS = {
     "misalign": ("misalign_deg",), "seed": ("seed",),
 }
 SENSOR_ERRORS_HELP = ("comma-separated KEY=VALUE in units of the normal-Sun reading: bias=B, scale=S, white=SIGMA, "
-                      "gm=SIGMA:TAU_S, walk=STEP_SIGMA:BOUND, sat=MIN:MAX, kelly=KAPPA[:POWER], misalign=DEG, seed=N; "
+                      "gm=SIGMA:TAU_S, walk=STEP_SIGMA:BOUND, sat=MIN:MAX, kelly=KAPPA[:POWER] (Basilisk's response in place of "
+                      "the traced optics; 0 = cut-off cosine), misalign=DEG, seed=N; "
                       "e.g. white=0.01,gm=0.02:300,walk=0.002:0.05")
 FAULTS_HELP = ("semicolon-separated KIND@DIODE:ONSET_S[-END_S], KIND one of " + ", ".join(FAULT_KINDS)
                + "; e.g. STUCK_MAX@3:2000 or OFF@5:100-400")

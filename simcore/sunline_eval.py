@@ -36,7 +36,7 @@ from estimators.sunline import perpendicular_rate, rate_from_sun_vectors, run_su
 from simcore.attitude import quat_conjugate, quat_multiply
 from simcore.constants import E_SUN_W_M2
 from simcore.sensor import DIODES, SensorChain
-from simcore.sensor_errors import (apply_errors, check_faults, kelly_fit, misalignment_rotations,
+from simcore.sensor_errors import (apply_errors, basilisk_response, check_faults, misalignment_rotations,
                                    SensorErrors)
 
 # Allowance (1 sigma, normalised units) for the Earth light on a Sun-seeing diode, which the
@@ -88,8 +88,8 @@ def _config_of(ds):
 
 
 def true_signals(ds, errors):
-    """Return the true normalised signals (N, K) (irradiance / E_sun) of a run, with the Kelly fit and the
-    misalignment of ``errors`` applied to the direct part, and the true normals (K, 3).
+    """Return the true normalised signals (N, K) (irradiance / E_sun) of a run, with the misalignment and
+    Basilisk's response (``errors.kelly``) applied to the direct part, and the true normals (K, 3).
 
     Misalignment: a diode's true frame is its nominal frame turned by a small random rotation
     (:func:`simcore.sensor_errors.misalignment_rotations`, seeded by ``errors.seed``). Its direct
@@ -97,7 +97,9 @@ def true_signals(ds, errors):
     the aperture's exact response (:meth:`simcore.aperture.WellAperture.response`) to the Sun
     centre; the traced albedo is kept (a misalignment of a degree changes the Earth's place in a
     70-90 deg field of view by as much, a small part of a slowly varying signal).
-    Kelly fit: the direct part times 1 - exp(-c^p / kappa), c the cosine of incidence on the true normal.
+    Basilisk's response (``errors.kelly`` not None): the direct part becomes E_sun s_scale illumination
+    x :func:`~simcore.sensor_errors.basilisk_response` of the cosine c on the true normal, with each
+    diode's design FOV as Basilisk's ``fov`` (Basilisk's shadowFactor is our illumination).
     """
     irr = ds["irradiance"].values
     direct, albedo = irr[..., 0].copy(), irr[..., 1]
@@ -116,8 +118,10 @@ def true_signals(ds, errors):
             r_true = ap.response(sun @ frames_true[k].T)
             direct[:, k] = np.clip(direct[:, k] + scale * (r_true - r_nom), 0.0, None)
         normals = frames_true[:, 2, :]
-    if errors.kelly > 0:
-        direct = direct * kelly_fit(sun @ normals.T, errors.kelly, errors.kelly_power)
+    if errors.kelly is not None:
+        fov = np.radians(ds["fov_deg"].values)[None, :]
+        light = (ds["sun_scale"].values * ds["illumination"].values)[:, None]
+        direct = e_sun * light * basilisk_response(sun @ normals.T, fov, errors.kelly, errors.kelly_power)
     return (direct + albedo) / e_sun, normals
 
 

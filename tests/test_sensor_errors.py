@@ -10,7 +10,7 @@ import pytest
 from simcore.constants import E_SUN_W_M2
 from simcore.sensor import DIODES, SensorChain
 from simcore.sensor_errors import (FAULT_KINDS, FAULT_NOISE_BOUND, Fault, SensorErrors, apply_errors,
-                                   bounded_random_walk, gauss_markov, kelly_fit, parse_faults,
+                                   basilisk_response, bounded_random_walk, gauss_markov, kelly_fit, parse_faults,
                                    parse_sensor_errors)
 
 Z = 5.0
@@ -105,6 +105,14 @@ def test_kelly_fit_closed_form():
         kelly_fit(c, -0.1)
 
 
+def test_basilisk_response_cuts_at_the_fov():
+    # value = c (1 - exp(-c^2 / kappa)) inside the FOV, 0 outside (coarseSunSensor.cpp computeTrueOutput)
+    c = np.cos(np.radians([0.0, 30.0, 59.9, 60.1, 90.0, 120.0]))
+    expected = np.where(c >= 0.5, c * (1 - np.exp(-c ** 2 / 0.2)), 0.0)
+    np.testing.assert_allclose(basilisk_response(c, np.radians(60.0), 0.2), expected, rtol=1e-14)
+    assert basilisk_response(c, np.radians(60.0))[3] == 0.0 and basilisk_response(c, np.radians(60.0))[2] > 0.5
+
+
 # ---- faults ----------------------------------------------------------------------------------------
 N, K, ONSET, DIODE = 200, 3, 120.0, 1
 T = np.arange(N, dtype=float)
@@ -186,6 +194,7 @@ def test_parse_sensor_errors_and_faults():
     f = parse_faults("STUCK_MAX@3:2000; off@5:100-400")
     assert f == (Fault(3, "STUCK_MAX", 2000.0), Fault(5, "OFF", 100.0, 400.0))
     assert parse_faults("") == () and parse_sensor_errors(None) == SensorErrors()
+    assert SensorErrors().kelly is None and parse_sensor_errors("kelly=0").kelly == 0.0   # traced vs Basilisk cosine
     assert set(FAULT_KINDS) == {"OFF", "STUCK_CURRENT", "STUCK_MAX", "STUCK_RAND", "RAND"}
 
 

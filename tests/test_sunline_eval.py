@@ -120,9 +120,24 @@ def test_misalignment_moves_the_direct_part_by_the_cosine_law(ds):
     # the angles moved by about a degree (Rayleigh, scale 1 deg: mean 1.25 deg)
     moved = np.degrees(np.arccos(np.clip(np.sum(normals_true * normals_nom, axis=1), -1, 1)))
     assert 0.1 < moved.mean() < 3.0
-    # and the Kelly fit multiplies the direct part by 1 - exp(-c^2 / kappa)
-    uk, _ = true_signals(ds, SensorErrors(kelly=0.1))
+
+
+
+def test_basilisk_response_replaces_the_traced_direct_part(ds):
+    # Basilisk coarseSunSensor.cpp computeTrueOutput: E_sun x (c if c >= cos(fov) else 0) x (1 - exp(-c^p / kappa))
+    e_sun = ds.attrs["e_sun_w_m2"]
+    sun, normals = ds["sun_dir_body"].values, ds["normal_body"].values
+    c = sun @ normals.T
+    cut = np.where(c >= np.cos(np.radians(70.0)), c, 0.0)
     irr = ds["irradiance"].values
-    c = np.clip(sun @ normals_nom.T, 0, None)
-    np.testing.assert_allclose(uk * ds.attrs["e_sun_w_m2"], irr[..., 0] * (1 - np.exp(-c ** 2 / 0.1)) + irr[..., 1],
-                               rtol=1e-12)
+    for kappa, fit in ((0.1, 1 - np.exp(-c ** 2 / 0.1)), (0.0, 1.0)):
+        u, _ = true_signals(ds, SensorErrors(kelly=kappa))
+        np.testing.assert_allclose(u * e_sun, e_sun * cut * fit + irr[..., 1], rtol=1e-12, atol=1e-9)
+    # against the traced optics: the same to the Monte-Carlo noise well inside the FOV, different at its edge
+    # (the well lets light in up to 83 deg, Basilisk cuts at 70) -- the comparison this option is for
+    u0, _ = true_signals(ds, SensorErrors(kelly=0.0))
+    traced = irr.sum(axis=-1) / e_sun
+    inner = c > np.cos(np.radians(60.0))
+    edge = (c < np.cos(np.radians(72.0))) & (c > np.cos(np.radians(80.0)))
+    assert np.abs(u0 - traced)[inner].max() < 0.01
+    assert np.abs(u0 - traced)[edge].max() > 0.02
