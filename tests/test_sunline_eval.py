@@ -87,6 +87,7 @@ def test_cli_filter_text(run_path, capsys):
     (["--faults", "OFF@2:900"], "onset 900 s lies outside the run (0 .. 599 s since its start)"),
     (["--sensor-errors", "white=-0.01"], "white must be >= 0"),
     (["--sensor-errors", "walk=0.001:-0.01"], "the walk bound must be >= 0, got -0.01"),
+    (["--gyro", "-0.1"], "--gyro must be the gyro's noise standard deviation, > 0 deg/s"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(run_path, capsys, extra, message):
     rc = main(["estimate", run_path, "--filter", "sunline-ekf", *extra])
