@@ -126,18 +126,20 @@ def test_misalignment_moves_the_direct_part_by_the_cosine_law(ds):
 
 def test_basilisk_response_replaces_the_traced_direct_part(ds):
     # Basilisk coarseSunSensor.cpp computeTrueOutput: E_sun x (c if c >= cos(fov) else 0) x (1 - exp(-c^p / kappa))
-    e_sun = ds.attrs["e_sun_w_m2"]
+    # x sunDistanceFactor x shadowFactor (our sun_scale and illumination: 1 and 1 in this span)
+    e_sun = ds.attrs["e_sun_w_m2"] * (ds["sun_scale"].values * ds["illumination"].values)[:, None]
     sun, normals = ds["sun_dir_body"].values, ds["normal_body"].values
     c = sun @ normals.T
     cut = np.where(c >= np.cos(np.radians(70.0)), c, 0.0)
     irr = ds["irradiance"].values
     for kappa, fit in ((0.1, 1 - np.exp(-c ** 2 / 0.1)), (0.0, 1.0)):
         u, _ = true_signals(ds, SensorErrors(kelly=kappa))
-        np.testing.assert_allclose(u * e_sun, e_sun * cut * fit + irr[..., 1], rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(u * ds.attrs["e_sun_w_m2"], e_sun * cut * fit + irr[..., 1], rtol=1e-12,
+                                   atol=1e-9)
     # against the traced optics: the same to the Monte-Carlo noise well inside the FOV, different at its edge
     # (the well lets light in up to 83 deg, Basilisk cuts at 70) -- the comparison this option is for
     u0, _ = true_signals(ds, SensorErrors(kelly=0.0))
-    traced = irr.sum(axis=-1) / e_sun
+    traced = irr.sum(axis=-1) / ds.attrs["e_sun_w_m2"]
     inner = c > np.cos(np.radians(60.0))
     edge = (c < np.cos(np.radians(72.0))) & (c > np.cos(np.radians(80.0)))
     assert np.abs(u0 - traced)[inner].max() < 0.01
