@@ -87,7 +87,8 @@ def _add_render_options(p):
     p.add_argument("--extra-flat", action="store_true",
                    help="add the two optional flat diodes on top and bottom (14-diode layouts)")
     p.add_argument("--map", default="toms2005", help="reflectivity map: toms2005, ceres2018-all, "
-                   "ceres2018-clear or a .npz file (default %(default)s)")
+                   "ceres2018-clear, uniform:ALBEDO (one mean albedo, as Basilisk's ALBEDO_AVG, e.g. uniform:0.3) "
+                   "or a .npz file (default %(default)s)")
     p.add_argument("--point-sun", action="store_true", help="a point Sun (no penumbra) instead of the 0.53 deg disc")
     p.add_argument("--solar-flux", choices=["physical", "thesis"], default="physical",
                    help="physical: 1361 W/m^2 at 1 AU (IAU 2015 B3, Kopp & Lean 2011) x (1 AU / r_sun)^2; "
@@ -201,12 +202,62 @@ def cmd_validate(args):
     return 0 if report["pass"] else 1
 
 
+def _sunline_filter(args, ds, errors, faults):
+    """Run a sun-line filter (simcore.pipeline.evaluate_sunline) over a run file: its JSON summary."""
+    from simcore.pipeline.evaluate_sunline import filter_run
+    return filter_run(ds, args.filter, diode=args.diode, errors=errors, faults=faults, noise=args.noise,
+                      seed=args.seed, gyro_sigma_deg_s=args.gyro)
+
+
+# --filter NAME -> function(args, ds, sensor_errors, faults) returning a JSON-able summary
+ESTIMATE_FILTERS = {"sunline-ekf": _sunline_filter, "sunline-ukf": _sunline_filter}
+
+
+def _print_filter_summary(args, out):
+    if args.json:
+        print(json.dumps({"run": args.run, **out}))
+        return 0
+    print(f"{args.run}: {out.get('run')}, {out['filter']}, sunlit errors (mean / p95 / max)")
+    rows = [(out["filter"], out["sun_error_deg"], out.get("rate_error_deg_s"))]
+    rows += [(name, c["sun_error_deg"], c.get("rate_error_deg_s")) for name, c in out.get("compare", {}).items()]
+    for name, sun, rate in rows:
+        s = sun["sunlit"]
+        line = f"  {name:<16} Sun {s['mean']} / {s['p95']} / {s['max']} deg"
+        if rate:
+            r = rate["sunlit"]
+            line += f";  rate (perpendicular to the Sun) {r['mean']} / {r['p95']} / {r['max']} deg/s"
+        print(line)
+    for f, dt in zip(out.get("faults", []), out.get("first_rejection_after_onset_s", [])):
+        print(f"  fault {f['kind']} on diode {f['diode']} at {f['onset_s']:g} s: "
+              + ("never rejected" if dt is None else f"first rejected {dt:g} s after its onset"))
+    return 0
+
+
+def _filter_inputs(args):
+    """Return (sensor errors, faults) of ``estimate``'s filter options, or raise the user's mistake."""
+    from simcore.sensor.errors import parse_faults, parse_sensor_errors
+    errors, faults = parse_sensor_errors(args.sensor_errors), parse_faults(args.faults)
+    if (args.faults or args.sensor_errors or args.gyro is not None) and not args.filter:
+        raise UserError("--faults, --sensor-errors and --gyro go with --filter (its summary lists WLS and "
+                        "Sun-Albedo-Sun on the same readings); add --filter sunline-ekf")
+    if args.gyro is not None and not args.gyro > 0:
+        raise UserError(f"--gyro must be the gyro's noise standard deviation, > 0 deg/s; got {args.gyro}")
+    return errors, faults
+
+
 def cmd_estimate(args):
     """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
+    errors, faults = _filter_inputs(args)
+
     import os
     from simcore.pipeline.evaluate import evaluate_run
     from simcore.pipeline.run import open_run
     ds = open_run(args.run)
+
+    if args.filter:
+        from simcore.sensor.errors import check_faults
+        check_faults(faults, ds["t_s"].values, ds.sizes["diode"])
+        return _print_filter_summary(args, ESTIMATE_FILTERS[args.filter](args, ds, errors, faults))
     errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
     if args.plots:
         from simcore.plots import plot_estimator_error
@@ -292,6 +343,11 @@ def cmd_aperture_sweep(args):
     return 0
 
 
+def _sensor_errors_help(name):
+    from simcore.sensor import errors as sensor_errors
+    return getattr(sensor_errors, name).replace("%", "%%")
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {__version__}")
@@ -334,6 +390,12 @@ def build_parser():
     e.add_argument("--noise", action="store_true", help="shot and Johnson noise in the sensor chain")
     e.add_argument("--seed", type=int, default=0, help="noise seed")
     e.add_argument("--plots", metavar="DIR", help="write error plots (PNG) to DIR")
+    e.add_argument("--filter", choices=sorted(ESTIMATE_FILTERS),
+                   help="run a filter instead of the thesis' estimators (WLS and Sun-Albedo-Sun listed beside it)")
+    e.add_argument("--faults", metavar="SPEC", help=_sensor_errors_help("FAULTS_HELP"))
+    e.add_argument("--sensor-errors", metavar="SPEC", help=_sensor_errors_help("SENSOR_ERRORS_HELP"))
+    e.add_argument("--gyro", type=float, metavar="DEG_S",
+                   help="give the filter a gyro: the run's true body rate plus white noise of this standard deviation")
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_estimate)
 

@@ -250,14 +250,32 @@ def _ceres2018(kind):
 MAP_NAMES = ("toms2005", "ceres2018-all", "ceres2018-clear")
 
 
+def uniform_map(albedo):
+    """Return a uniform map (TOMS grid, 180 x 288) of reflectivity ``albedo`` everywhere.
+
+    The comparison with Basilisk's albedo module in its ALBEDO_AVG mode, which gives the whole
+    Earth one average albedo (e.g. 0.3); ``albedo`` a number or its text, >= 0.
+    """
+    try:
+        value = float(albedo)
+    except (TypeError, ValueError):
+        raise ValueError(f"uniform:{albedo} needs a number: the mean albedo, e.g. uniform:0.3") from None
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"a uniform map's albedo must be a finite number >= 0 (e.g. uniform:0.3), got {albedo}")
+    return ReflectivityMap.from_array(np.full((180, 288), value), name=f"uniform {value:g}")
+
+
 def named_map(name):
-    """Return the shipped map called ``name`` (:data:`MAP_NAMES`; '_' may stand for '-') or one read
-    from a .npz file holding ``reflectivity`` (and optionally ``lat_deg``, ``lon_deg`` cell centres)."""
+    """Return the shipped map called ``name`` (:data:`MAP_NAMES`; '_' may stand for '-'), a uniform map
+    ``uniform:A`` (:func:`uniform_map`) or one read from a .npz file holding ``reflectivity`` (and
+    optionally ``lat_deg``, ``lon_deg`` cell centres)."""
     key = str(name).replace("_", "-")
     if key == "toms2005":
         return ReflectivityMap.toms2005()
     if key in ("ceres2018-all", "ceres2018-clear"):
         return ReflectivityMap.ceres2018(key.split("-")[1])
+    if key.startswith("uniform:"):
+        return uniform_map(key.split(":", 1)[1])
     if str(name).endswith(".npz") and os.path.isfile(name):
         with np.load(name) as z:
             if "reflectivity" not in z.files:
@@ -265,7 +283,8 @@ def named_map(name):
                                  "reflectivity=..., lat_deg=..., lon_deg=...)")
             return ReflectivityMap.from_array(z["reflectivity"], z["lat_deg"] if "lat_deg" in z.files else None,
                                               z["lon_deg"] if "lon_deg" in z.files else None, name=str(name))
-    raise ValueError(f"unknown reflectivity map {name!r}; use one of {', '.join(MAP_NAMES)} or a .npz file")
+    raise ValueError(f"unknown reflectivity map {name!r}; use one of {', '.join(MAP_NAMES)}, uniform:ALBEDO "
+                     "or a .npz file")
 
 
 def as_map(reflectivity):
