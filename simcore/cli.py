@@ -6,12 +6,9 @@ import sys
 import numpy as np
 
 import simcore
+from simcore.errors import InvalidInputError, UserError
 
 DEFAULT_TLE_HELP = "TLE file (2- or 3-line; default: the shipped ESTCube-1 set, epoch 2016-07-27)"
-
-
-class UserError(Exception):
-    """A mistake in what the user asked for: printed as one line, exit status 2."""
 
 
 def _add_orbit_options(p):
@@ -89,10 +86,16 @@ def _add_render_options(p):
     p.add_argument("--point-sun", action="store_true", help="a point Sun (no penumbra) instead of the 0.53 deg disc")
     p.add_argument("--variant", choices=["llvm_ad_mono", "cuda_ad_mono"],
                    help="Mitsuba variant (default: cuda_ad_mono when a GPU works, else llvm_ad_mono)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same numbers)")
-    p.add_argument("--chunk", type=int, default=512, metavar="EPOCHS", help="epochs per stored chunk")
-    p.add_argument("-o", "--output", default="runs/default.nc", metavar="FILE.nc",
-                   help="output netCDF file (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="random seed, 0 .. 2^64-1 (same seed, same numbers)")
+    p.add_argument("--chunk", type=int, default=512, metavar="EPOCHS",
+                   help="epochs per stored chunk (not part of the result: a resume may use another)")
+    p.add_argument("-o", "--output", default=None, metavar="FILE.nc",
+                   help="output netCDF file (default: runs/default.nc; a run with other settings gets the next "
+                        "free runs/default-N.nc, the same settings find their earlier file)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --output made with other settings")
+    p.add_argument("--allow-bright-map", action="store_true",
+                   help="accept a reflectivity map with values above 1.2 (the shipped maps peak at 1.07)")
 
 
 def run_options(args):
@@ -106,7 +109,7 @@ def run_options(args):
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
         dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
         sun_disc=not args.point_sun, chunk_epochs=args.chunk, output=args.output,
-        fail_on_check=args.fail_on_check)
+        fail_on_check=args.fail_on_check, overwrite=args.overwrite, allow_bright_map=args.allow_bright_map)
 
 
 def cmd_run(args):
@@ -115,8 +118,6 @@ def cmd_run(args):
     import time
     from simcore.run import execute
     opts = run_options(args)
-    if opts.output == "runs/default.nc":
-        os.makedirs("runs", exist_ok=True)
     t0 = time.perf_counter()
     path, ds, report = execute(opts, log=lambda m: print(m, file=sys.stderr))
     elapsed = time.perf_counter() - t0
@@ -131,10 +132,14 @@ def cmd_run(args):
               f"in {elapsed:.1f} s ({ds.attrs['variant']})")
         print(f"  mean irradiance: direct {float(irr.sel(component='direct').mean()):.1f} W/m^2, "
               f"albedo {float(irr.sel(component='albedo').mean()):.1f} W/m^2")
-        verdict = "PASS" if report["pass"] else "FAIL"
-        print(f"  analytic check: {verdict}  direct outliers {report['direct_outliers']}/{report['direct_checked']}, "
-              f"albedo mean |z| {report['albedo_mean_abs_z']:.2f}, |z|>4 {report['albedo_share_abs_z_gt_4']:.2%} "
-              f"of {report['albedo_checked']}")
+        if report.get("verdict") == "no sunlit data":
+            print("  analytic check: no sunlit data (the whole span is in the Earth's shadow; nothing to compare: "
+                  "choose another --start or a longer --duration)")
+        else:
+            verdict = "PASS" if report["pass"] else "FAIL"
+            print(f"  analytic check: {verdict}  direct outliers {report['direct_outliers']}/"
+                  f"{report['direct_checked']}, albedo mean |z| {report['albedo_mean_abs_z']:.2f}, |z|>4 "
+                  f"{report['albedo_share_abs_z_gt_4']:.2%} of {report['albedo_checked']}")
         print(f"  output: {out['output']}")
         print(f"  open it: xarray.open_dataset({path!r})")
     return 1 if (args.fail_on_check and not report["pass"]) else 0
@@ -167,7 +172,16 @@ def cmd_coverage(args):
 
 def cmd_view(args):
     """Render the scene picture: the CubeSat over the textured Earth in sunlight."""
+    from scenes.config import SatelliteConfig
     from scenes.mitsuba_scene import picture
+    from simcore.runstore import check_writable
+    if args.spp < 1:
+        raise InvalidInputError(f"--spp must be a positive number of samples per pixel, got {args.spp}")
+    w, h = args.resolution
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise InvalidInputError(f"--resolution W H must be whole pixels from 1 to 16384, got {w} {h}")
+    SatelliteConfig.load(args.config)
+    check_writable(args.output)
     pic = picture(args.config, args.output, spp=args.spp, resolution=tuple(args.resolution))
     print(json.dumps({"config": args.config, "picture": str(pic.path)}) if args.json else f"picture: {pic.path}")
     return 0
@@ -182,6 +196,9 @@ def cmd_validate(args):
     flags, report = check_run(ds)
     if args.json:
         print(json.dumps({"run": args.run, **report}))
+    elif report["verdict"] == "no sunlit data":
+        print(f"{args.run}: {ds.attrs.get('configuration')}, {ds.sizes['time']} epochs x {ds.sizes['diode']} diodes")
+        print("  verdict: no sunlit data (the whole span is in the Earth's shadow: nothing was checked)")
     else:
         print(f"{args.run}: {ds.attrs.get('configuration')}, {ds.sizes['time']} epochs x {ds.sizes['diode']} diodes")
         print(f"  direct: {report['direct_outliers']} of {report['direct_checked']} diode-epochs outside "
@@ -200,7 +217,17 @@ def cmd_estimate(args):
     import os
     from simcore.evaluate import evaluate_run
     from simcore.run import open_run
+    from simcore.sensor import DIODES
+    if args.diode not in DIODES:
+        raise InvalidInputError(f"--diode {args.diode} is unknown; use one of {', '.join(sorted(DIODES))}")
+    if not 0 <= args.seed < 2 ** 64:
+        raise InvalidInputError(f"--seed must be a whole number from 0 to 2^64-1, got {args.seed}")
     ds = open_run(args.run)
+    if not np.any(ds["illumination"].values >= 1.0):
+        msg = "no sunlit data (the whole span is in the Earth's shadow: no Sun vector to estimate)"
+        print(json.dumps({"run": args.run, "table": [], "verdict": "no sunlit data"}) if args.json
+              else f"{args.run}: {ds.attrs.get('configuration')}: {msg}")
+        return 1
     errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
     if args.plots:
         from simcore.plots import plot_estimator_error
@@ -273,6 +300,8 @@ def cmd_aperture_sweep(args):
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {simcore.__version__}")
+    p.add_argument("--debug", action="store_true",
+                   help="show the full traceback of a user error too (accepted anywhere on the line)")
     sub = p.add_subparsers(dest="command")
 
     r = sub.add_parser("run", help="the main job: render a study (default: ESTCube-1, 2016-07-02, tilt20_fov70, "
@@ -361,13 +390,20 @@ def build_parser():
 
 
 def main(argv=None):
+    """Run the sunsim command line; return the exit status (2: a user mistake, told in one line)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # --debug is accepted anywhere on the line, so a failing command can be repeated with it appended.
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
-        args = parser.parse_args(["run"] + list(argv or []))
+        args = parser.parse_args(["run"] + argv)
     try:
         return args.func(args)
-    except (UserError, ValueError, TypeError, OSError) as exc:
+    except UserError as exc:
+        if debug:
+            raise
         print(f"sunsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
