@@ -172,6 +172,7 @@ def cmd_coverage(args):
 
 def cmd_view(args):
     """Render the scene picture: the CubeSat over the textured Earth in sunlight."""
+    import os
     from scenes.config import SatelliteConfig
     from scenes.mitsuba_scene import picture
     from simcore.runstore import check_writable
@@ -180,7 +181,10 @@ def cmd_view(args):
     w, h = args.resolution
     if not (1 <= w <= 16384 and 1 <= h <= 16384):
         raise InvalidInputError(f"--resolution W H must be whole pixels from 1 to 16384, got {w} {h}")
-    SatelliteConfig.load(args.config)
+    cfg = SatelliteConfig.load(args.config)
+    if args.output is None:
+        os.makedirs("runs", exist_ok=True)
+        args.output = os.path.join("runs", f"scene_{cfg.name}.png")
     check_writable(args.output)
     pic = picture(args.config, args.output, spp=args.spp, resolution=tuple(args.resolution))
     print(json.dumps({"config": args.config, "picture": str(pic.path)}) if args.json else f"picture: {pic.path}")
@@ -229,13 +233,10 @@ def cmd_estimate(args):
               else f"{args.run}: {ds.attrs.get('configuration')}: {msg}")
         return 1
     errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
-    if args.plots:
-        from simcore.plots import plot_estimator_error
-        os.makedirs(args.plots, exist_ok=True)
-        t = ds["t_s"].values
-        for name, e in errs.items():
-            plot_estimator_error(t, e["angle_deg"], sunlit=extra["sunlit"], title=f"{ds.attrs['configuration']}: {name}",
-                                 path=os.path.join(args.plots, f"error_{name}.png"))
+    if args.plots is not None:
+        from simcore.run_figures import default_plot_folder, write_error_plots
+        args.plots = args.plots or default_plot_folder(args.run)
+        write_error_plots(ds, errs, extra["sunlit"], args.plots, noise=args.noise)
     if args.json:
         print(json.dumps({"run": args.run, "table": table}))
         return 0
@@ -315,14 +316,14 @@ def build_parser():
     c = sub.add_parser("coverage", help="HEALPix coverage fractions red/yellow/green and a Mollweide map")
     c.add_argument("configs", nargs="+", metavar="CONFIG", help="configuration names or .toml files")
     c.add_argument("--dead", type=int, nargs="*", default=[], metavar="I", help="dead diode indices")
-    c.add_argument("--plot-dir", default=".", help="folder for the map PNGs (default: here)")
+    c.add_argument("--plot-dir", default="runs", help="folder for the map PNGs (default: %(default)s)")
     c.add_argument("--no-plot", action="store_true", help="fractions only")
     c.add_argument("--json", action="store_true", help="one JSON object per configuration")
     c.set_defaults(func=cmd_coverage)
 
     v = sub.add_parser("view", help="render a picture of the scene (CubeSat over the textured Earth)")
     v.add_argument("config", metavar="CONFIG")
-    v.add_argument("-o", "--output", default="scene.png", help="PNG file (default %(default)s)")
+    v.add_argument("-o", "--output", default=None, help="PNG file (default runs/scene_CONFIG.png)")
     v.add_argument("--spp", type=int, default=64, help="samples per pixel (default %(default)s)")
     v.add_argument("--resolution", type=int, nargs=2, default=(960, 540), metavar=("W", "H"))
     v.add_argument("--json", action="store_true")
@@ -340,7 +341,9 @@ def build_parser():
     e.add_argument("--diode", default="BPW34FS", help="diode type (BPW34FS, SFH2430, BPW34FAS, BPV23F)")
     e.add_argument("--noise", action="store_true", help="shot and Johnson noise in the sensor chain")
     e.add_argument("--seed", type=int, default=0, help="noise seed")
-    e.add_argument("--plots", metavar="DIR", help="write error plots (PNG) to DIR")
+    e.add_argument("--plots", metavar="DIR", nargs="?", const="",
+                   help="write error plots (PNG, one y range for all estimators) to DIR (default: RUN_plots/ "
+                        "beside the run file)")
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_estimate)
 
