@@ -214,7 +214,8 @@ class Attitude:
 
         Format: comma-separated, first non-comment line the header
         ``t_s,qw,qx,qy,qz``, then one row per epoch: time in seconds
-        (strictly increasing, any origin) and the scalar-first quaternion
+        (strictly increasing, any origin: ``sunsim run --attitude`` takes the
+        first row as the run's start) and the scalar-first quaternion
         ``q_gcrs_from_body``. Lines starting with ``#`` and blank lines are
         ignored.
         """

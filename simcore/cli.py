@@ -1,6 +1,7 @@
 """The ``sunsim`` command line."""
 import argparse
 import json
+import os
 import sys
 
 import numpy as np
@@ -9,6 +10,18 @@ import simcore
 from simcore.errors import InvalidInputError, UserError
 
 DEFAULT_TLE_HELP = "TLE file (2- or 3-line; default: the shipped ESTCube-1 set, epoch 2016-07-27)"
+
+
+def _output_folder(folder, option):
+    """Create ``folder`` (an output folder the user named with ``option``) or raise a one-line OutputError."""
+    from simcore.errors import OutputError
+    from simcore.runstore import check_writable
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create the folder {folder} ({exc.strerror or exc}); choose another {option}") from None
+    check_writable(os.path.join(folder, "probe"))
+    return folder
 
 
 def _add_orbit_options(p):
@@ -156,7 +169,7 @@ def cmd_coverage(args):
         frac = coverage_fractions(cfg)
         png = None
         if not args.no_plot:
-            os.makedirs(args.plot_dir, exist_ok=True)
+            _output_folder(args.plot_dir, "--plot-dir")
             png = os.path.join(args.plot_dir, f"coverage_{cfg.name}" + (f"_dead{'-'.join(map(str, args.dead))}" if args.dead else "") + ".png")
             plot_coverage(cfg, png)
         results.append({"config": cfg.name, "dead": [int(i) for i in args.dead],
@@ -172,7 +185,6 @@ def cmd_coverage(args):
 
 def cmd_view(args):
     """Render the scene picture: the CubeSat over the textured Earth in sunlight."""
-    import os
     from scenes.config import SatelliteConfig
     from scenes.mitsuba_scene import picture
     from simcore.runstore import check_writable
@@ -218,7 +230,6 @@ def cmd_validate(args):
 
 def cmd_estimate(args):
     """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
-    import os
     from simcore.evaluate import evaluate_run
     from simcore.run import open_run
     from simcore.sensor import DIODES
@@ -232,10 +243,11 @@ def cmd_estimate(args):
         print(json.dumps({"run": args.run, "table": [], "verdict": "no sunlit data"}) if args.json
               else f"{args.run}: {ds.attrs.get('configuration')}: {msg}")
         return 1
-    errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
     if args.plots is not None:
         from simcore.run_figures import default_plot_folder, write_error_plots
-        args.plots = args.plots or default_plot_folder(args.run)
+        args.plots = _output_folder(args.plots or default_plot_folder(args.run), "--plots folder")
+    errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
+    if args.plots is not None:
         write_error_plots(ds, errs, extra["sunlit"], args.plots, noise=args.noise)
     if args.json:
         print(json.dumps({"run": args.run, "table": table}))
@@ -262,6 +274,7 @@ def cmd_sweep(args):
                       direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
                       reflectivity=args.map, sun_disc=not args.point_sun, chunk_epochs=args.chunk)
     log = (lambda m: None) if args.json else print
+    _output_folder(args.folder, "--folder")
     path, ds = sweep(base, args.configs, args.starts, args.spin_rates, args.seeds, args.folder,
                      scheduler=args.scheduler, workers=args.workers, log=log)
     passed = int(ds["check_pass"].values.sum())
@@ -275,6 +288,9 @@ def cmd_reproduce(args):
     """The thesis' chapter-4 study on rendered irradiance: renders what is missing, writes the results page."""
     from simcore.reproduce import reproduce
     log = (lambda m: print(m, file=sys.stderr))
+    _output_folder(args.folder, "--folder")
+    if args.page:
+        _output_folder(args.page, "--page")
     res = reproduce(args.folder, span=args.span, page_folder=args.page, log=log, render=not args.no_render,
                     second_spin=None if args.span == "short" else args.second_spin,
                     cross_map=args.span != "short", noise=True)

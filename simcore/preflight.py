@@ -20,8 +20,8 @@ MAX_SEED = 2 ** 64 - 1            # the renderer hashes the seed as an unsigned 
 # above this is almost surely in percent or scaled by mistake: 10x the TOMS map gives ~1700 W/m^2 of albedo.
 MAP_REFLECTIVITY_MAX = 1.2
 TLE_AGE_WARN_DAYS = 30.0
-# SGP4 along-track error growth against precise ephemerides, typical LEO: 1-3 km per day from the TLE epoch
-# (Vallado & Crawford 2008, "SGP4 orbit determination", AIAA 2008-6770, sec. VII).
+# SGP4's position error growth away from the TLE epoch in low Earth orbit: the usual rule of thumb of 1-3 km per
+# day (the figure simcore.orbit uses too). An order of magnitude for the warning, not a covariance.
 SGP4_KM_PER_DAY = (1.0, 3.0)
 
 

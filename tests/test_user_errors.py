@@ -137,6 +137,12 @@ def test_view_mistakes_are_one_line(tmp_path, bad, good, words):
     assert (tmp_path / "pic.png").stat().st_size > 0
 
 
+def test_an_uncreatable_figure_folder_is_one_line(tmp_path):
+    _case(tmp_path, ["coverage", "tilt0_fov90", "--plot-dir", "/proc/cov"], ["coverage", "tilt0_fov90", "--plot-dir", "cov"],
+          "cannot create the folder /proc/cov")
+    assert os.listdir(tmp_path / "cov") == ["coverage_tilt0_fov90.png"]
+
+
 # ---- item 6: honest inputs ----------------------------------------------------------------------------
 def test_a_map_far_above_one_needs_an_explicit_flag(tmp_path):
     from simcore.maps import named_map
