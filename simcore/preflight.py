@@ -31,7 +31,15 @@ def _positive(value, option, what="a positive number"):
 
 
 def check_numbers(opts):
-    """Raise InvalidInputError for an impossible number among ``opts``' settings (no files read)."""
+    """Raise InvalidInputError for an impossible number or date among ``opts``' settings (no files read)."""
+    from simcore.epochs import Epochs
+    if isinstance(opts.start, str):
+        try:
+            Epochs.from_any(opts.start)
+        except InvalidInputError as exc:
+            reason = str(exc).split("(", 1)[1].split(")", 1)[0] if "(" in str(exc) else "unreadable"
+            raise InvalidInputError(f"--start {opts.start!r} is not a UTC time ({reason}); give ISO-8601 such as "
+                                    "2016-07-02T00:00:00Z") from None
     _positive(opts.step_s, "--step", "a positive number of seconds")
     if opts.duration_s is not None:
         _positive(opts.duration_s, "--duration", "a positive number of seconds")

@@ -70,6 +70,7 @@ def _cuda_works():
     (["--satellite", "ISS"], ["--satellite", "39161"], "no satellite 'ISS'"),
     (["--dead"] + [str(i) for i in range(14)], ["--dead", "0"], "all 14 diodes of tilt20_fov70 are dead"),
     (["--chunk", "0"], ["--chunk", "2"], "--chunk must be a positive number"),
+    (["--start", "yesterday"], ["--start", "2016-07-02T00:45:00Z"], "--start 'yesterday' is not a UTC time"),
     (["-o", "/proc/x.nc"], ["-o", "x.nc"], "cannot write /proc/x.nc"),
     (["-o", "no/such/folder/x.nc"], ["-o", "x.nc"], "does not exist"),
 ])
