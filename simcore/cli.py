@@ -274,6 +274,14 @@ def cmd_sweep(args):
                       direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
                       reflectivity=args.map, sun_disc=not args.point_sun, chunk_epochs=args.chunk)
     log = (lambda m: None) if args.json else print
+    # Every point's numbers, dates and configuration are checked here, not in a Dask worker hours later.
+    from scenes.config import SatelliteConfig
+    from simcore.preflight import check_numbers
+    from simcore.sweep import sweep_points
+    for cfg in args.configs:
+        SatelliteConfig.load(cfg)
+    for point in sweep_points(base, args.configs[:1], args.starts, args.spin_rates, args.seeds, args.folder):
+        check_numbers(point)
     _output_folder(args.folder, "--folder")
     path, ds = sweep(base, args.configs, args.starts, args.spin_rates, args.seeds, args.folder,
                      scheduler=args.scheduler, workers=args.workers, log=log)

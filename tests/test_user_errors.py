@@ -144,6 +144,12 @@ def test_an_uncreatable_figure_folder_is_one_line(tmp_path):
     assert os.listdir(tmp_path / "cov") == ["coverage_tilt0_fov90.png"]
 
 
+def test_a_sweep_is_checked_before_any_worker_starts(tmp_path):
+    base = ["sweep", "--starts", "2016-07-02T00:45:00Z", "--duration", "4", "--workers", "1", "--folder", "sw"]
+    _case(tmp_path, base + ["--samples", "0", "0"], base + ["--samples", "16", "4"], "--samples DIRECT must be 4 m^2")
+    assert (tmp_path / "sw" / "sweep.nc").exists()
+
+
 # ---- item 6: honest inputs ----------------------------------------------------------------------------
 def test_a_map_far_above_one_needs_an_explicit_flag(tmp_path):
     from simcore.maps import named_map
