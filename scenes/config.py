@@ -29,6 +29,7 @@ import numpy as np
 from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture, diode_frame
 from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
+from simcore.errors import InvalidInputError
 
 CONFIG_DIR = Path(__file__).resolve().parent
 MM = 1e-3
@@ -53,7 +54,7 @@ _TRIANGLE = {"+x": ((-1, -1), (0, +1), (+1, -1)), "-x": ((-1, -1), (0, +1), (+1,
              "+y": ((-1, +1), (0, -1), (+1, +1)), "-y": ((-1, +1), (0, -1), (+1, +1))}
 
 
-class ConfigError(ValueError):
+class ConfigError(InvalidInputError):
     """A satellite configuration that cannot be built; the message says what to change."""
 
 

@@ -1,18 +1,28 @@
 """The ``sunsim`` command line."""
 import argparse
 import json
+import os
 import sys
 
 import numpy as np
 
 from simcore._version import __version__
 from simcore.constants import E_SUN_W_M2
+from simcore.errors import InvalidInputError, UserError
 
 DEFAULT_TLE_HELP = "TLE file (2- or 3-line; default: the shipped ESTCube-1 set, epoch 2016-07-27)"
 
 
-class UserError(Exception):
-    """A mistake in what the user asked for: printed as one line, exit status 2."""
+def _output_folder(folder, option):
+    """Create ``folder`` (an output folder the user named with ``option``) or raise a one-line OutputError."""
+    from simcore.errors import OutputError
+    from simcore.pipeline.store import check_writable
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create the folder {folder} ({exc.strerror or exc}); choose another {option}") from None
+    check_writable(os.path.join(folder, "probe"))
+    return folder
 
 
 def _add_orbit_options(p):
@@ -95,10 +105,16 @@ def _add_render_options(p):
                         "thesis: a constant 1366.1 W/m^2 (default %(default)s)")
     p.add_argument("--variant", choices=["llvm_ad_mono", "cuda_ad_mono"],
                    help="Mitsuba variant (default: cuda_ad_mono when a GPU works, else llvm_ad_mono)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same numbers)")
-    p.add_argument("--chunk", type=int, default=512, metavar="EPOCHS", help="epochs per stored chunk")
-    p.add_argument("-o", "--output", default="runs/default.nc", metavar="FILE.nc",
-                   help="output netCDF file (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="random seed, 0 .. 2^64-1 (same seed, same numbers)")
+    p.add_argument("--chunk", type=int, default=512, metavar="EPOCHS",
+                   help="epochs per stored chunk (not part of the result: a resume may use another)")
+    p.add_argument("-o", "--output", default=None, metavar="FILE.nc",
+                   help="output netCDF file (default: runs/default.nc; a run with other settings gets the next "
+                        "free runs/default-N.nc, the same settings find their earlier file)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --output made with other settings")
+    p.add_argument("--allow-bright-map", action="store_true",
+                   help="accept a reflectivity map with values above 1.2 (the shipped maps peak at 1.07)")
 
 
 def run_options(args):
@@ -113,7 +129,7 @@ def run_options(args):
         dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
         sun_disc=not args.point_sun, chunk_epochs=args.chunk, output=args.output,
         **(dict(e_sun_w_m2=E_SUN_W_M2, distance_scaling=False) if args.solar_flux == "thesis" else {}),
-        fail_on_check=args.fail_on_check)
+        fail_on_check=args.fail_on_check, overwrite=args.overwrite, allow_bright_map=args.allow_bright_map)
 
 
 def cmd_run(args):
@@ -122,8 +138,6 @@ def cmd_run(args):
     import time
     from simcore.pipeline.run import execute
     opts = run_options(args)
-    if opts.output == "runs/default.nc":
-        os.makedirs("runs", exist_ok=True)
     t0 = time.perf_counter()
     path, ds, report = execute(opts, log=lambda m: print(m, file=sys.stderr))
     elapsed = time.perf_counter() - t0
@@ -138,10 +152,14 @@ def cmd_run(args):
               f"in {elapsed:.1f} s ({ds.attrs['variant']})")
         print(f"  mean irradiance: direct {float(irr.sel(component='direct').mean()):.1f} W/m^2, "
               f"albedo {float(irr.sel(component='albedo').mean()):.1f} W/m^2")
-        verdict = "PASS" if report["pass"] else "FAIL"
-        print(f"  analytic check: {verdict}  direct outliers {report['direct_outliers']}/{report['direct_checked']}, "
-              f"albedo mean |z| {report['albedo_mean_abs_z']:.2f}, |z|>4 {report['albedo_share_abs_z_gt_4']:.2%} "
-              f"of {report['albedo_checked']}")
+        if report.get("verdict") == "no sunlit data":
+            print("  analytic check: no sunlit data (the whole span is in the Earth's shadow; nothing to compare: "
+                  "choose another --start or a longer --duration)")
+        else:
+            verdict = "PASS" if report["pass"] else "FAIL"
+            print(f"  analytic check: {verdict}  direct outliers {report['direct_outliers']}/"
+                  f"{report['direct_checked']}, albedo mean |z| {report['albedo_mean_abs_z']:.2f}, |z|>4 "
+                  f"{report['albedo_share_abs_z_gt_4']:.2%} of {report['albedo_checked']}")
         print(f"  output: {out['output']}")
         print(f"  open it: xarray.open_dataset({path!r})")
     return 1 if (args.fail_on_check and not report["pass"]) else 0
@@ -158,7 +176,7 @@ def cmd_coverage(args):
         frac = coverage_fractions(cfg)
         png = None
         if not args.no_plot:
-            os.makedirs(args.plot_dir, exist_ok=True)
+            _output_folder(args.plot_dir, "--plot-dir")
             png = os.path.join(args.plot_dir, f"coverage_{cfg.name}" + (f"_dead{'-'.join(map(str, args.dead))}" if args.dead else "") + ".png")
             plot_coverage(cfg, png)
         results.append({"config": cfg.name, "dead": [int(i) for i in args.dead],
@@ -174,7 +192,19 @@ def cmd_coverage(args):
 
 def cmd_view(args):
     """Render the scene picture: the CubeSat over the textured Earth in sunlight."""
+    from scenes.config import SatelliteConfig
     from scenes.mitsuba_scene import picture
+    from simcore.pipeline.store import check_writable
+    if args.spp < 1:
+        raise InvalidInputError(f"--spp must be a positive number of samples per pixel, got {args.spp}")
+    w, h = args.resolution
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise InvalidInputError(f"--resolution W H must be whole pixels from 1 to 16384, got {w} {h}")
+    cfg = SatelliteConfig.load(args.config)
+    if args.output is None:
+        os.makedirs("runs", exist_ok=True)
+        args.output = os.path.join("runs", f"scene_{cfg.name}.png")
+    check_writable(args.output)
     pic = picture(args.config, args.output, spp=args.spp, resolution=tuple(args.resolution))
     print(json.dumps({"config": args.config, "picture": str(pic.path)}) if args.json else f"picture: {pic.path}")
     return 0
@@ -189,6 +219,9 @@ def cmd_validate(args):
     flags, report = check_run(ds)
     if args.json:
         print(json.dumps({"run": args.run, **report}))
+    elif report["verdict"] == "no sunlit data":
+        print(f"{args.run}: {ds.attrs.get('configuration')}, {ds.sizes['time']} epochs x {ds.sizes['diode']} diodes")
+        print("  verdict: no sunlit data (the whole span is in the Earth's shadow: nothing was checked)")
     else:
         print(f"{args.run}: {ds.attrs.get('configuration')}, {ds.sizes['time']} epochs x {ds.sizes['diode']} diodes")
         print(f"  direct: {report['direct_outliers']} of {report['direct_checked']} diode-epochs outside "
@@ -248,24 +281,30 @@ def _filter_inputs(args):
 def cmd_estimate(args):
     """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
     errors, faults = _filter_inputs(args)
-
-    import os
     from simcore.pipeline.evaluate import evaluate_run
     from simcore.pipeline.run import open_run
+    from simcore.sensor.chain import DIODES
+    if args.diode not in DIODES:
+        raise InvalidInputError(f"--diode {args.diode} is unknown; use one of {', '.join(sorted(DIODES))}")
+    if not 0 <= args.seed < 2 ** 64:
+        raise InvalidInputError(f"--seed must be a whole number from 0 to 2^64-1, got {args.seed}")
     ds = open_run(args.run)
-
+    from simcore.environment.eclipse import sunlit
+    if not np.any(sunlit(ds["illumination"].values)):
+        msg = "no sunlit data (the whole span is in the Earth's shadow: no Sun vector to estimate)"
+        print(json.dumps({"run": args.run, "table": [], "verdict": "no sunlit data"}) if args.json
+              else f"{args.run}: {ds.attrs.get('configuration')}: {msg}")
+        return 1
     if args.filter:
         from simcore.sensor.errors import check_faults
         check_faults(faults, ds["t_s"].values, ds.sizes["diode"])
         return _print_filter_summary(args, ESTIMATE_FILTERS[args.filter](args, ds, errors, faults))
+    if args.plots is not None:
+        from simcore.studies.run_figures import default_plot_folder, write_error_plots
+        args.plots = _output_folder(args.plots or default_plot_folder(args.run), "--plots folder")
     errs, table, extra = evaluate_run(ds, diode=args.diode, noise=args.noise, seed=args.seed)
-    if args.plots:
-        from simcore.plots import plot_estimator_error
-        os.makedirs(args.plots, exist_ok=True)
-        t = ds["t_s"].values
-        for name, e in errs.items():
-            plot_estimator_error(t, e["angle_deg"], sunlit=extra["sunlit"], title=f"{ds.attrs['configuration']}: {name}",
-                                 path=os.path.join(args.plots, f"error_{name}.png"))
+    if args.plots is not None:
+        write_error_plots(ds, errs, extra["sunlit"], args.plots, noise=args.noise)
     if args.json:
         print(json.dumps({"run": args.run, "table": table}))
         return 0
@@ -291,6 +330,15 @@ def cmd_sweep(args):
                       direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
                       reflectivity=args.map, sun_disc=not args.point_sun, chunk_epochs=args.chunk)
     log = (lambda m: None) if args.json else print
+    # Every point's numbers, dates and configuration are checked here, not in a Dask worker hours later.
+    from scenes.config import SatelliteConfig
+    from simcore.pipeline.preflight import check_numbers
+    from simcore.pipeline.sweep import sweep_points
+    for cfg in args.configs:
+        SatelliteConfig.load(cfg)
+    for point in sweep_points(base, args.configs[:1], args.starts, args.spin_rates, args.seeds, args.folder):
+        check_numbers(point)
+    _output_folder(args.folder, "--folder")
     path, ds = sweep(base, args.configs, args.starts, args.spin_rates, args.seeds, args.folder,
                      scheduler=args.scheduler, workers=args.workers, log=log)
     passed = int(ds["check_pass"].values.sum())
@@ -304,6 +352,9 @@ def cmd_reproduce(args):
     """The thesis' chapter-4 study on rendered irradiance: renders what is missing, writes the results page."""
     from simcore.studies.reproduce import reproduce
     log = (lambda m: print(m, file=sys.stderr))
+    _output_folder(args.folder, "--folder")
+    if args.page:
+        _output_folder(args.page, "--page")
     res = reproduce(args.folder, span=args.span, page_folder=args.page, log=log, render=not args.no_render,
                     second_spin=None if args.span == "short" else args.second_spin,
                     cross_map=args.span != "short", noise=True)
@@ -351,6 +402,8 @@ def _sensor_errors_help(name):
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {__version__}")
+    p.add_argument("--debug", action="store_true",
+                   help="show the full traceback of a user error too (accepted anywhere on the line)")
     sub = p.add_subparsers(dest="command")
 
     r = sub.add_parser("run", help="the main job: render a study (default: ESTCube-1, 2016-07-02, tilt20_fov70, "
@@ -364,14 +417,14 @@ def build_parser():
     c = sub.add_parser("coverage", help="HEALPix coverage fractions red/yellow/green and a Mollweide map")
     c.add_argument("configs", nargs="+", metavar="CONFIG", help="configuration names or .toml files")
     c.add_argument("--dead", type=int, nargs="*", default=[], metavar="I", help="dead diode indices")
-    c.add_argument("--plot-dir", default=".", help="folder for the map PNGs (default: here)")
+    c.add_argument("--plot-dir", default="runs", help="folder for the map PNGs (default: %(default)s)")
     c.add_argument("--no-plot", action="store_true", help="fractions only")
     c.add_argument("--json", action="store_true", help="one JSON object per configuration")
     c.set_defaults(func=cmd_coverage)
 
     v = sub.add_parser("view", help="render a picture of the scene (CubeSat over the textured Earth)")
     v.add_argument("config", metavar="CONFIG")
-    v.add_argument("-o", "--output", default="scene.png", help="PNG file (default %(default)s)")
+    v.add_argument("-o", "--output", default=None, help="PNG file (default runs/scene_CONFIG.png)")
     v.add_argument("--spp", type=int, default=64, help="samples per pixel (default %(default)s)")
     v.add_argument("--resolution", type=int, nargs=2, default=(960, 540), metavar=("W", "H"))
     v.add_argument("--json", action="store_true")
@@ -389,7 +442,9 @@ def build_parser():
     e.add_argument("--diode", default="BPW34FS", help="diode type (BPW34FS, SFH2430, BPW34FAS, BPV23F)")
     e.add_argument("--noise", action="store_true", help="shot and Johnson noise in the sensor chain")
     e.add_argument("--seed", type=int, default=0, help="noise seed")
-    e.add_argument("--plots", metavar="DIR", help="write error plots (PNG) to DIR")
+    e.add_argument("--plots", metavar="DIR", nargs="?", const="",
+                   help="write error plots (PNG, one y range for all estimators) to DIR (default: RUN_plots/ "
+                        "beside the run file)")
     e.add_argument("--filter", choices=sorted(ESTIMATE_FILTERS),
                    help="run a filter instead of the thesis' estimators (WLS and Sun-Albedo-Sun listed beside it)")
     e.add_argument("--faults", metavar="SPEC", help=_sensor_errors_help("FAULTS_HELP"))
@@ -444,13 +499,20 @@ def build_parser():
 
 
 def main(argv=None):
+    """Run the sunsim command line; return the exit status (2: a user mistake, told in one line)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # --debug is accepted anywhere on the line, so a failing command can be repeated with it appended.
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
-        args = parser.parse_args(["run"] + list(argv or []))
+        args = parser.parse_args(["run"] + argv)
     try:
         return args.func(args)
-    except (UserError, ValueError, TypeError, OSError) as exc:
+    except UserError as exc:
+        if debug:
+            raise
         print(f"sunsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

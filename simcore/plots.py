@@ -256,7 +256,7 @@ def _diode_colours(k):
 # ----------------------------------------------------------------------------- estimator error
 
 def plot_estimator_error(t_s, err_deg, *, window=181, sunlit=None, path=None, title=None,
-                         ylabel="Sun vector angle error [deg]", time_unit=None):
+                         ylabel="Sun vector angle error [deg]", time_unit=None, ylim=None):
     """Return a Figure of the estimator angle error (deg) over time, with Hanning-window mean and mean +- STD.
 
     As thesis figs. 4.6-4.17: the raw error as dots (one per sample), the centred Hanning-window
@@ -265,7 +265,8 @@ def plot_estimator_error(t_s, err_deg, *, window=181, sunlit=None, path=None, ti
     name -> (N,) drawn in one axes. ``sunlit`` (N,) bool: eclipse samples are shaded grey and
     left blank (errors there are dropped before smoothing). Sunlit samples with no estimate
     (NaN) are ticked along the bottom. When a few raw samples would squash the axis they
-    are clipped at the top and counted in a note. The mean line and band carry the gids
+    are clipped at the top and counted in a note. ``ylim`` (bottom, top) fixes the range, e.g.
+    one range for all the estimators of a run (:func:`shared_error_ylim`). The mean line and band carry the gids
     ``"mean:<name>"`` and ``"band:<name>"`` (name ``"error"`` for a single series).
     """
     t = _series("t_s", t_s)
@@ -326,7 +327,13 @@ def plot_estimator_error(t_s, err_deg, *, window=181, sunlit=None, path=None, ti
         handles.insert(0, Line2D([], [], ls="none", marker=".", ms=5, color="0.45", label="error (each sample, dots)"))
     handles += extra
 
-    if raw.size:
+    if raw.size and ylim is not None:
+        above = int(np.sum(raw > ylim[1]))
+        if above:
+            ax.text(0.995, 0.985, f"{above} samples above the axis (max {float(raw.max()):.1f} deg)",
+                    transform=ax.transAxes, ha="right", va="top", fontsize=8, color="0.3")
+        ax.set_ylim(*ylim)
+    elif raw.size:
         lo = min(0.0, float(raw.min()))
         robust = max(top_stats, float(np.percentile(raw, 99.5)))
         hi = float(raw.max())
@@ -613,8 +620,25 @@ def plot_coverage_map(counts, *, title=None, normals_body=None, dead=(), path=No
     return _finish(fig, path)
 
 
+def shared_error_ylim(err_deg, sunlit=None):
+    """Return one (0, top) range in degrees for the error plots of several estimators of one run.
+
+    ``top`` is 1.15 x the largest 99.5th percentile of the sunlit finite errors (so a few outliers of
+    one estimator do not squash all the plots; :func:`plot_estimator_error` counts what is cut)."""
+    tops = []
+    for e in err_deg.values():
+        e = np.asarray(e, dtype=float)
+        if sunlit is not None:
+            e = e[np.asarray(sunlit, bool)]
+        e = e[np.isfinite(e)]
+        if e.size:
+            tops.append(float(np.percentile(e, 99.5)))
+    top = 1.15 * max(tops) if tops and max(tops) > 0 else 1.0
+    return 0.0, top
+
+
 __all__ = ["plot_albedo_cells", "plot_angular_response", "plot_coverage_map", "plot_diode_irradiance",
-           "plot_estimator_error", "save_figure"]
+           "plot_estimator_error", "save_figure", "shared_error_ylim"]
 
 
 # ----------------------------------------------------------------------------- aperture studies

@@ -68,8 +68,8 @@ def test_killed_run_resumes_to_identical_numbers(tmp_path):
     (["run", "-o", "/nonexistent-folder/x.nc"], "does not exist"),
     (["coverage", "tilt25_fov7O"], "did you mean"),
 ])
-def test_user_mistakes_get_one_clear_line(args, words):
-    r = _sunsim(args)
+def test_user_mistakes_get_one_clear_line(args, words, tmp_path):
+    r = _sunsim(args, cwd=tmp_path)      # never in the checkout: a default output would land in its runs/
     assert r.returncode == 2
     assert "Traceback" not in r.stderr
     lines = [x for x in r.stderr.splitlines() if x.strip()]
@@ -155,3 +155,18 @@ def test_default_solar_flux_is_the_measured_tsi_with_inverse_square_and_thesis_f
         ratio = dp[lit] / dt[lit]
         np.testing.assert_allclose(ratio, np.broadcast_to(expect[:, None], dp.shape)[lit], rtol=2e-4)
         assert abs((1.0 / d_au ** 2).mean() - 0.9674) < 0.001        # early July, near aphelion (1.0167 AU)
+
+
+def test_an_attitude_file_with_another_time_origin_starts_at_the_run_start(tmp_path):
+    # Attitude.from_file promises "any origin": rows at t = 1000 .. 1100 s describe the run's first 100 s.
+    # The history turns about GCRS z at 0.01 rad/s from the identity, so body x must lie at the angle
+    # 0.01 t in the GCRS x-y plane at run time t (SLERP is exact for a constant-rate turn about a fixed axis).
+    from simcore.pipeline.run import RunOptions, PreparedRun
+    w = 0.01
+    csv = tmp_path / "att.csv"
+    rows = [(1000.0 + t, np.cos(w * t / 2), 0.0, 0.0, np.sin(w * t / 2)) for t in np.arange(0.0, 101.0, 10.0)]
+    csv.write_text("t_s,qw,qx,qy,qz\n" + "".join(",".join(repr(float(x)) for x in r) + "\n" for r in rows))
+    study = PreparedRun(RunOptions(start="2016-07-02T00:45:00Z", duration_s=50, attitude_file=str(csv)))
+    t = np.arange(50.0)
+    np.testing.assert_allclose(study.geometry.R_gcrs_from_body[:, :, 0],
+                               np.column_stack([np.cos(w * t), np.sin(w * t), np.zeros(50)]), atol=1e-12)

@@ -4,7 +4,7 @@ import os
 import numpy as np
 import pytest
 
-from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges
+from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges
 
 
 def test_chunks_resume_and_concatenate(tmp_path):
@@ -14,6 +14,7 @@ def test_chunks_resume_and_concatenate(tmp_path):
     ranges = chunk_ranges(10, 4)
     assert ranges == [(0, 4), (4, 8), (8, 10)]
     store.save(0, 4, {"x": np.arange(4.0)})
+    store.close()       # the first process ends (the kernel would drop its lock the same way)
     # A "new process" with the same spec sees the finished chunk and continues.
     again = ChunkStore(out, dict(spec)).open()
     assert again.done() == [(0, 4)]
@@ -27,9 +28,57 @@ def test_chunks_resume_and_concatenate(tmp_path):
 
 def test_a_partial_run_with_other_settings_is_refused(tmp_path):
     out = str(tmp_path / "run.nc")
-    ChunkStore(out, {"seed": 1}).open()
+    first = ChunkStore(out, {"seed": 1}).open()
+    first.save(0, 4, {"x": np.arange(4.0)})
+    first.close()
     with pytest.raises(ValueError, match="different settings"):
         ChunkStore(out, {"seed": 2}).open()
+
+
+def test_a_partial_folder_without_chunks_is_taken_over(tmp_path):
+    # Nothing finished, nothing to lose: a corrected command must not be refused by an empty folder.
+    out = str(tmp_path / "run.nc")
+    ChunkStore(out, {"seed": 1}).open().close()
+    store = ChunkStore(out, {"seed": 2}).open()
+    store.close()
+    with open(os.path.join(store.folder, "spec.json")) as f:
+        assert '"seed": 2' in f.read()
+
+
+def test_a_second_owner_is_refused_while_the_first_holds_the_output(tmp_path):
+    out = str(tmp_path / "run.nc")
+    first = ChunkStore(out, {"seed": 1}).open()
+    with pytest.raises(PermissionError, match="being written by another sunsim process"):
+        ChunkStore(out, {"seed": 1}).open()
+    first.close()
+    ChunkStore(out, {"seed": 1}).open().remove()
+    assert os.listdir(tmp_path) == []
+
+
+def test_temporaries_left_by_a_crash_are_cleaned_on_resume(tmp_path):
+    out = str(tmp_path / "run.nc")
+    store = ChunkStore(out, {"seed": 1}).open()
+    store.close()
+    stray = os.path.join(store.folder, "run.nc.tmp-abc123")     # a final write killed half-way
+    with open(stray, "w") as f:
+        f.write("half")
+    ChunkStore(out, {"seed": 1}).open().close()
+    assert not os.path.exists(stray)
+
+
+def test_missing_ranges_keep_chunks_of_another_size():
+    assert missing_ranges(10, 4, []) == [(0, 4), (4, 8), (8, 10)]
+    assert missing_ranges(10, 3, [(0, 4), (8, 10)]) == [(4, 7), (7, 8)]
+    assert missing_ranges(10, 4, [(0, 4), (4, 8), (8, 10)]) == []
+
+
+def test_files_get_the_users_umask(tmp_path):
+    old = os.umask(0o027)
+    try:
+        atomic_write(str(tmp_path / "f.nc"), lambda tmp: open(tmp, "w").close())
+    finally:
+        os.umask(old)
+    assert (os.stat(tmp_path / "f.nc").st_mode & 0o777) == 0o640   # 0666 & ~0027
 
 
 def test_atomic_write_leaves_nothing_on_failure(tmp_path):
@@ -53,3 +102,6 @@ def test_unwritable_outputs_are_explained(tmp_path):
     afile.write_text("x")
     with pytest.raises(FileNotFoundError, match="does not exist"):
         check_writable(str(afile / "run.nc"))
+    # /proc accepts no new files, whatever the permission bits say (root passes os.access there).
+    with pytest.raises(PermissionError, match="the folder /proc accepts no new files"):
+        check_writable("/proc/x.nc")

@@ -15,9 +15,12 @@ A measured or externally simulated attitude enters via
 brought onto the simulation's epochs by :meth:`Attitude.resample` (SLERP).
 """
 import csv
+import io
 import os
 
 import numpy as np
+
+from simcore.errors import InputNotFoundError, InvalidInputError
 
 DEFAULT_TUMBLE_AXIS = np.full(3, 1.0 / np.sqrt(3.0))
 DEFAULT_TUMBLE_AXIS.setflags(write=False)  # a shared default argument: keep it immutable
@@ -174,7 +177,7 @@ class Attitude:
             i = int(np.flatnonzero(off)[0])
             raise ValueError(f"attitude quaternion row {i} has norm {norm[i]:.6g}, not 1 within {norm_tol} "
                              f"({int(off.sum())} such rows); check the column order and the scalar-first/last "
-                             "convention, or normalise deliberately with quat_normalize()")
+                             "convention, or normalise the quaternions deliberately before using them")
         q = q / norm[:, None]
         if t_s is not None:
             t_s = np.atleast_1d(np.asarray(t_s, dtype=float))
@@ -211,38 +214,53 @@ class Attitude:
 
         Format: comma-separated, first non-comment line the header
         ``t_s,qw,qx,qy,qz``, then one row per epoch: time in seconds
-        (strictly increasing, any origin) and the scalar-first quaternion
+        (strictly increasing, any origin: ``sunsim run --attitude`` takes the
+        first row as the run's start) and the scalar-first quaternion
         ``q_gcrs_from_body``. Lines starting with ``#`` and blank lines are
         ignored.
         """
         path = os.fspath(path)
+        try:
+            with open(path, "rb") as fh:
+                raw = fh.read()
+        except FileNotFoundError:
+            raise InputNotFoundError(f"attitude file {path} not found; give an existing CSV file "
+                                     f"({','.join(ATTITUDE_CSV_HEADER)})") from None
+        except OSError as exc:
+            raise InvalidInputError(f"cannot read attitude file {path}: {exc.strerror}") from None
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError:
+            text = None
+        if text is None or "\x00" in text:
+            raise InvalidInputError(f"{path} is not an attitude CSV file (it holds binary data); give a text "
+                                    f"file with the header {','.join(ATTITUDE_CSV_HEADER)}")
         rows = []
         header = None
-        with open(path, newline="") as fh:
-            for lineno, line in enumerate(csv.reader(fh), start=1):
-                if not line or not "".join(line).strip() or line[0].lstrip().startswith("#"):
-                    continue
-                cells = [c.strip() for c in line]
-                if header is None:
-                    header = tuple(cells)
-                    if header != ATTITUDE_CSV_HEADER:
-                        raise ValueError(f"{path}:{lineno}: header must be {','.join(ATTITUDE_CSV_HEADER)}, "
-                                         f"got {','.join(cells)}")
-                    continue
-                if len(cells) != 5:
-                    raise ValueError(f"{path}:{lineno}: expected 5 values (t_s,qw,qx,qy,qz), got {len(cells)}")
-                try:
-                    rows.append([float(c) for c in cells])
-                except ValueError:
-                    raise ValueError(f"{path}:{lineno}: cannot read {','.join(cells)} as numbers") from None
+        for lineno, line in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
+            if not line or not "".join(line).strip() or line[0].lstrip().startswith("#"):
+                continue
+            cells = [c.strip() for c in line]
+            if header is None:
+                header = tuple(cells)
+                if header != ATTITUDE_CSV_HEADER:
+                    raise InvalidInputError(f"{path}:{lineno}: header must be {','.join(ATTITUDE_CSV_HEADER)}, "
+                                            f"got {','.join(cells)}")
+                continue
+            if len(cells) != 5:
+                raise InvalidInputError(f"{path}:{lineno}: expected 5 values (t_s,qw,qx,qy,qz), got {len(cells)}")
+            try:
+                rows.append([float(c) for c in cells])
+            except ValueError:
+                raise InvalidInputError(f"{path}:{lineno}: cannot read {','.join(cells)} as numbers") from None
         if header is None or not rows:
-            raise ValueError(f"{path}: no attitude rows found; expected a header "
-                             f"{','.join(ATTITUDE_CSV_HEADER)} and one row per epoch")
+            raise InvalidInputError(f"{path}: no attitude rows found; expected a header "
+                                    f"{','.join(ATTITUDE_CSV_HEADER)} and one row per epoch")
         data = np.array(rows)
         try:
             return cls(data[:, 1:], t_s=data[:, 0], norm_tol=norm_tol)
         except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from None
+            raise InvalidInputError(f"{path}: {exc}") from None
 
     def to_file(self, path):
         """Write the history as CSV (``t_s,qw,qx,qy,qz``) readable by :meth:`from_file`."""

@@ -19,6 +19,8 @@ import warnings
 import erfa
 import numpy as np
 
+from simcore.errors import InvalidInputError
+
 JD_UNIX_EPOCH = 2440587.5  # 1970-01-01T00:00:00 UTC
 SECONDS_PER_DAY = 86400.0
 _NS_PER_DAY = 86_400_000_000_000
@@ -44,7 +46,7 @@ def _parse_one(value):
         try:
             parsed = _dt.datetime.fromisoformat(text.replace("Z", "+00:00").replace("z", "+00:00"))
         except ValueError as exc:
-            raise ValueError(f"cannot read {value!r} as a UTC time ({exc}); give {_FORMATS}") from None
+            raise InvalidInputError(f"cannot read {value!r} as a UTC time ({exc}); give {_FORMATS}") from None
         if parsed.tzinfo is not None:
             parsed = parsed.astimezone(_dt.timezone.utc).replace(tzinfo=None)
         return np.datetime64(parsed, "ns")
@@ -103,9 +105,9 @@ class Epochs:
         """Return epochs ``start, start + step, ...`` covering ``[0, duration_s)``."""
         duration_s, step_s = float(duration_s), float(step_s)
         if not np.isfinite(step_s) or step_s <= 0:
-            raise ValueError(f"step must be a positive number of seconds, got {step_s}")
+            raise InvalidInputError(f"step must be a positive number of seconds, got {step_s}")
         if not np.isfinite(duration_s) or duration_s <= 0:
-            raise ValueError(f"duration must be a positive number of seconds, got {duration_s}")
+            raise InvalidInputError(f"duration must be a positive number of seconds, got {duration_s}")
         n = int(np.ceil(duration_s / step_s - 1e-9))
         start = cls.from_any(start)
         if len(start) != 1:

@@ -24,15 +24,18 @@ toolbox's ``cellarea.m``)::
 Values are used as they are: TOMS exceeds 1.0 over some ice and is never
 clamped. Negative or non-finite values are rejected.
 """
+import difflib
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from importlib import resources
 
 import os
+import zipfile
 
 import numpy as np
 
 from simcore.constants import R_EARTH_MEAN_M
+from simcore.errors import InputNotFoundError, InvalidInputError
 
 # Relative tolerance (of one grid step) for "regularly spaced" and "covers the globe".
 _GRID_RTOL = 1e-6
@@ -259,9 +262,9 @@ def uniform_map(albedo):
     try:
         value = float(albedo)
     except (TypeError, ValueError):
-        raise ValueError(f"uniform:{albedo} needs a number: the mean albedo, e.g. uniform:0.3") from None
+        raise InvalidInputError(f"uniform:{albedo} needs a number: the mean albedo, e.g. uniform:0.3") from None
     if not (np.isfinite(value) and value >= 0):
-        raise ValueError(f"a uniform map's albedo must be a finite number >= 0 (e.g. uniform:0.3), got {albedo}")
+        raise InvalidInputError(f"a uniform map's albedo must be a finite number >= 0 (e.g. uniform:0.3), got {albedo}")
     return ReflectivityMap.from_array(np.full((180, 288), value), name=f"uniform {value:g}")
 
 
@@ -276,15 +279,28 @@ def named_map(name):
         return ReflectivityMap.ceres2018(key.split("-")[1])
     if key.startswith("uniform:"):
         return uniform_map(key.split(":", 1)[1])
-    if str(name).endswith(".npz") and os.path.isfile(name):
-        with np.load(name) as z:
-            if "reflectivity" not in z.files:
-                raise ValueError(f"{name} has no 'reflectivity' array; save the map as np.savez(path, "
-                                 "reflectivity=..., lat_deg=..., lon_deg=...)")
-            return ReflectivityMap.from_array(z["reflectivity"], z["lat_deg"] if "lat_deg" in z.files else None,
-                                              z["lon_deg"] if "lon_deg" in z.files else None, name=str(name))
-    raise ValueError(f"unknown reflectivity map {name!r}; use one of {', '.join(MAP_NAMES)}, uniform:ALBEDO "
-                     "or a .npz file")
+    if str(name).endswith(".npz"):
+        if not os.path.isfile(name):
+            raise InputNotFoundError(f"reflectivity map file {name} not found; give an existing .npz file or one "
+                                     f"of {', '.join(MAP_NAMES)}")
+        try:
+            with np.load(name) as z:
+                arrays = {k: z[k] for k in z.files}
+        except (OSError, ValueError, zipfile.BadZipFile) as exc:
+            raise InvalidInputError(f"{name} is not a readable .npz map ({exc}); save the map as "
+                                    "numpy.savez(path, reflectivity=..., lat_deg=..., lon_deg=...)") from None
+        if "reflectivity" not in arrays:
+            raise InvalidInputError(f"{name} has no 'reflectivity' array; save the map as numpy.savez(path, "
+                                    "reflectivity=..., lat_deg=..., lon_deg=...)")
+        try:
+            return ReflectivityMap.from_array(arrays["reflectivity"], arrays.get("lat_deg"), arrays.get("lon_deg"),
+                                              name=str(name))
+        except ValueError as exc:
+            raise InvalidInputError(f"{name}: {exc}") from None
+    close = difflib.get_close_matches(key, MAP_NAMES, n=1)
+    hint = f"did you mean {close[0]}? " if close else ""
+    raise InvalidInputError(f"unknown reflectivity map {name!r}; {hint}use one of {', '.join(MAP_NAMES)} "
+                            "uniform:ALBEDO or a .npz file")
 
 
 def as_map(reflectivity):

@@ -21,6 +21,7 @@ import numpy as np
 from sgp4.api import SGP4_ERRORS, Satrec
 
 from simcore.environment import frames
+from simcore.errors import InputNotFoundError, InvalidInputError
 from simcore.environment.epochs import Epochs
 
 DEFAULT_TLE = "estcube1_2016-07-27.tle"
@@ -31,8 +32,12 @@ TLE_LINE_LENGTH = 69
 _FLOAT = r"[ +-]?(\d+\.?\d*|\.\d+)"
 
 
-class TLEError(ValueError):
+class TLEError(InvalidInputError):
     """A two-line element set that cannot be used (format, checksum, SGP4 initialisation)."""
+
+
+class TLENotFoundError(InputNotFoundError):
+    """A TLE file that does not exist."""
 
 
 def error_message(code):
@@ -97,7 +102,8 @@ def validate_tle(line1, line2, *, verify_checksum=True, where=""):
             if found != str(expected):
                 raise TLEError(f"{where}TLE line {no} fails its checksum: expected {expected} (from columns "
                                f"1-68), found {found!r} in column 69. The line is corrupted or was edited; "
-                               "fetch the TLE again (or pass verify_checksum=False if you edited it on purpose)")
+                               "fetch the TLE again (an edited line needs its checksum recomputed: the sum of its "
+                               "digits, each '-' counting 1, modulo 10)")
     if l1[2:7] != l2[2:7]:
         raise TLEError(f"{where}the two TLE lines belong to different satellites: line 1 has satellite "
                        f"number {l1[2:7].strip()!r}, line 2 has {l2[2:7].strip()!r}")
@@ -158,14 +164,17 @@ class Orbit:
             with open(path, "rb") as f:
                 raw = f.read()
         except OSError as exc:
+            if isinstance(exc, FileNotFoundError):
+                raise TLENotFoundError(f"TLE file {path} not found; give an existing 2- or 3-line TLE file") from None
             raise TLEError(f"cannot read TLE file {path!r}: {exc.strerror}") from None
         return cls._from_text(raw, path, satellite)
 
     @classmethod
-    def default(cls):
-        """Return the shipped ESTCube-1 orbit (NORAD 39161, TLE epoch 2016-07-27, ``data/estcube1_2016-07-27.tle``)."""
+    def default(cls, satellite=None):
+        """Return the shipped ESTCube-1 orbit (NORAD 39161, TLE epoch 2016-07-27, ``data/estcube1_2016-07-27.tle``);
+        ``satellite`` (a name or NORAD id), when given, must name it."""
         res = importlib.resources.files("simcore") / "data" / DEFAULT_TLE
-        return cls._from_text(res.read_bytes(), str(res), None)
+        return cls._from_text(res.read_bytes(), str(res), satellite)
 
     @classmethod
     def _from_text(cls, raw, path, satellite):
@@ -184,8 +193,8 @@ class Orbit:
         if satellite is None:
             if len(entries) > 1:
                 listing = ", ".join(f"{e[0] or '(no name)'} [{e[1][2:7].strip()}]" for e in entries)
-                raise TLEError(f"{path!r} holds {len(entries)} satellites; choose one with satellite=NAME "
-                               f"or NORAD id: {listing}")
+                raise TLEError(f"{path!r} holds {len(entries)} satellites; choose one by name or NORAD id "
+                               f"(--satellite): {listing}")
             chosen = entries[0]
         else:
             chosen = _choose(entries, satellite, path)
@@ -242,7 +251,7 @@ class Orbit:
         age = (epochs.jd1 - sat.jdsatepoch) + (epochs.jd2 - sat.jdsatepochF)
         worst = int(np.argmax(np.abs(age)))
         if abs(age[worst]) > MAX_SPAN_DAYS:
-            raise ValueError(
+            raise InvalidInputError(
                 f"requested time {epochs[worst].iso()[0]} is {age[worst]:+.0f} days from the epoch of the TLE of "
                 f"{self.name} ({self.epoch.iso()[0]}); SGP4 is meaningless that far ({MAX_SPAN_DAYS:.0f} days "
                 "at most, and it drifts 1-3 km per day): use a TLE from near the requested time")

@@ -33,7 +33,9 @@ import numpy as np
 from estimators import sun_albedo_sun_estimate, wls_estimate
 from estimators.metrics import angle_error_deg
 from estimators.sunline import perpendicular_rate, rate_from_sun_vectors, run_sunline_filter
+from simcore.environment import eclipse
 from simcore.environment.attitude import quat_conjugate, quat_multiply
+from simcore.errors import InvalidInputError
 from simcore.constants import E_SUN_W_M2
 from simcore.sensor.chain import DIODES, SensorChain
 from simcore.sensor.errors import (apply_errors, basilisk_response, check_faults, misalignment_rotations,
@@ -82,7 +84,7 @@ def _config_of(ds):
                                     source=ds.attrs.get("configuration", ""), extra_flat_diodes=extra or None)
     if cfg.normals.shape != ds["normal_body"].shape or not np.allclose(cfg.normals, ds["normal_body"].values,
                                                                         atol=1e-9):
-        raise ValueError("the run file's configuration text does not rebuild its diode normals; "
+        raise InvalidInputError("the run file's configuration text does not rebuild its diode normals; "
                          "misalignment needs the apertures of the run (re-run it with this sunsim)")
     return cfg
 
@@ -163,20 +165,20 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
     """
     filt = FILTER_KINDS.get(kind, kind)
     if filt not in ("ekf", "ukf"):
-        raise ValueError(f"unknown filter {kind!r}; use one of {', '.join(FILTER_KINDS)}")
+        raise InvalidInputError(f"unknown filter {kind!r}; use one of {', '.join(FILTER_KINDS)}")
     errors = errors or SensorErrors()
     faults = tuple(faults)
     t = ds["t_s"].values
     normals = ds["normal_body"].values
     check_faults(faults, t, len(normals))
     if gyro_sigma_deg_s is not None and not gyro_sigma_deg_s > 0:
-        raise ValueError(f"the gyro noise must be > 0 deg/s, got {gyro_sigma_deg_s}")
+        raise InvalidInputError(f"the gyro noise must be > 0 deg/s, got {gyro_sigma_deg_s}")
     e_p, chain = sensed_readings(ds, diode=diode, errors=errors, faults=faults, noise=noise, seed=seed)
     e_s0 = DIODES[diode].e_s0_w_m2 if isinstance(diode, str) else diode.e_s0_w_m2
     fov = float(np.min(ds["fov_deg"].values))
     live = ~ds["dead"].values.astype(bool)
     sun_true = ds["sun_dir_body"].values
-    sunlit = ds["illumination"].values >= 1.0
+    sunlit = eclipse.sunlit(ds["illumination"].values)
     w_true = true_rate_body(ds["q_gcrs_from_body"].values, t)
     w_perp_true = perpendicular_rate(w_true, sun_true)
 
@@ -184,7 +186,7 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
     sas, _ = sun_albedo_sun_estimate(e_p, normals, fov_deg=fov, e_s0=e_s0, live=live)
     start_ok = wls_ok & sunlit
     if not start_ok.any():
-        raise ValueError("no sunlit epoch of this run has a valid WLS estimate to start the filter from "
+        raise InvalidInputError("no sunlit epoch of this run has a valid WLS estimate to start the filter from "
                          "(is the whole run in eclipse?)")
     i0 = int(np.argmax(start_ok))
     lsb = chain.lsb_w_m2 / e_s0

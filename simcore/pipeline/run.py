@@ -9,11 +9,14 @@ the numbers of an uninterrupted run (the renderer's random numbers are keyed
 by the global epoch index, not by the chunk).
 """
 import dataclasses
+import functools
+import datetime as _dt
 import hashlib
 import json
 import os
 from pathlib import Path
 import platform
+import shlex
 import sys
 from dataclasses import dataclass
 
@@ -25,7 +28,7 @@ from scenes.meshes import build_satellite_mesh
 from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, diode_irradiance
-from simcore.render.irradiance import DiodeSurfaces, Renderer, choose_variant
+from simcore.render.irradiance import DiodeSurfaces, Renderer
 
 from simcore import _llvm
 from simcore._version import __version__
@@ -33,8 +36,10 @@ from simcore.environment import attitude as _attitude
 from simcore.pipeline import check as _check
 from simcore.constants import E_SUN_W_M2, R_SUN_M, TSI_W_M2
 from simcore.environment.epochs import Epochs
+from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.environment.maps import named_map
-from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges
+from simcore.pipeline.preflight import check_map, check_numbers, check_variant, tle_age_note
+from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
 from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
 
 CHECK_REFINE = 3  # the analytic reference for the albedo check uses cells refined 3 x 3
@@ -66,13 +71,15 @@ class RunOptions:
     e_sun_w_m2: float = TSI_W_M2        # solar irradiance at 1 AU (the thesis: E_SUN_W_M2 = 1366.1)
     distance_scaling: bool = True      # x (1 AU / r_sun)^2 (the thesis: a constant, False)
     chunk_epochs: int = 512
-    output: str = "runs/default.nc"
+    output: str = None                 # None: runs/default.nc, or the next free runs/default-N.nc (execute)
     fail_on_check: bool = False
+    overwrite: bool = False            # replace an existing output made with other settings
+    allow_bright_map: bool = False     # accept reflectivity above preflight.MAP_REFLECTIVITY_MAX
 
     def spec(self):
         """Return the JSON-able settings that determine the numbers (not where they go)."""
         d = dataclasses.asdict(self)
-        for k in ("output", "fail_on_check", "chunk_epochs"):
+        for k in ("output", "fail_on_check", "chunk_epochs", "overwrite", "allow_bright_map"):
             d.pop(k)
         d["dead"] = sorted(int(i) for i in d["dead"])
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
@@ -94,17 +101,24 @@ def _refined(m, factor):
 
 
 def study_geometry(opts):
-    """Return (orbit, attitude, geometry) of the orbit, time span and attitude that ``opts`` describe."""
+    """Return (orbit, attitude, geometry) of the orbit, time span and attitude that ``opts`` describe.
+
+    An attitude file's first row is the run's start, whatever its time origin (``Attitude.from_file``)."""
     if opts.step_s is None or not opts.step_s > 0:
-        raise ValueError(f"--step must be a positive number of seconds, got {opts.step_s}")
-    orbit = Orbit.default() if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
+        raise InvalidInputError(f"--step must be a positive number of seconds, got {opts.step_s}")
+    orbit = Orbit.default(opts.satellite) if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
     duration = orbital_period_s(orbit) if opts.duration_s is None else opts.duration_s
     if not (np.isfinite(duration) and 0 < duration <= 400 * 86400):
-        raise ValueError(f"--duration must be between 0 and 400 days in seconds, got {duration}")
+        raise InvalidInputError(f"--duration must be between 0 and 400 days in seconds, got {duration}")
     epochs = Epochs.range(opts.start, duration, opts.step_s)
     t_s = epochs.seconds_since(epochs[0])
     if opts.attitude_file:
-        attitude = _attitude.Attitude.from_file(opts.attitude_file).resample(t_s)
+        history = _attitude.Attitude.from_file(opts.attitude_file)
+        span = history.t_s[-1] - history.t_s[0]
+        if t_s[-1] > span:
+            raise InvalidInputError(f"the attitude file {opts.attitude_file} spans {span:g} s but the run needs "
+                                    f"{t_s[-1]:g} s after its start; supply a longer history or a shorter --duration")
+        attitude = history.resample(history.t_s[0] + t_s)
     else:
         attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
     return orbit, attitude, compute_geometry(orbit, epochs, attitude)
@@ -185,6 +199,25 @@ def _versions():
             "pyerfa": erfa.__version__}
 
 
+def _tle_age_days(study):
+    """Return the days from the TLE epoch to the run's first epoch (negative: before the epoch)."""
+    sat = study.orbit.satrec
+    return (study.epochs.jd1[0] - sat.jdsatepoch) + (study.epochs.jd2[0] - sat.jdsatepochF)
+
+
+@functools.lru_cache(maxsize=1)
+def _git_commit():
+    """Return the git commit sunsim runs from (with '-dirty' for local changes), or '' outside a checkout."""
+    import subprocess
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        out = subprocess.run(["git", "-C", here, "describe", "--always", "--dirty", "--abbrev=12"],
+                             capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return out.stdout.strip() if out.returncode == 0 else ""
+
+
 def build_dataset(study, data, variant):
     """Return the run's xarray Dataset from the concatenated chunk arrays."""
     o, g, cfg = study.opts, study.geometry, study.config
@@ -195,13 +228,16 @@ def build_dataset(study, data, variant):
     names = [d.name for d in cfg.diodes]
     W = "W m-2"
     coords = {
-        "time": ("time", g.epochs.datetime64),
+        "time": ("time", g.epochs.datetime64, {"long_name": "epoch, UTC", "standard_name": "time",
+                                               "time_zone": "UTC"}),
         "t_s": ("time", g.t_s, {"units": "s", "long_name": "seconds since the first epoch"}),
-        "diode": ("diode", np.arange(k)),
-        "diode_name": ("diode", np.array(names, dtype=object)),
-        "component": ("component", np.array(["direct", "albedo"], dtype=object)),
-        "xyz": ("xyz", np.array(["x", "y", "z"], dtype=object)),
-        "quat": ("quat", np.array(["w", "x", "y", "z"], dtype=object)),
+        "diode": ("diode", np.arange(k), {"units": "1", "long_name": "diode index"}),
+        "diode_name": ("diode", np.array(names, dtype=object), {"long_name": "diode name in the configuration"}),
+        "component": ("component", np.array(["direct", "albedo"], dtype=object),
+                      {"long_name": "irradiance component: direct Sun or Earth albedo"}),
+        "xyz": ("xyz", np.array(["x", "y", "z"], dtype=object), {"long_name": "Cartesian axis"}),
+        "quat": ("quat", np.array(["w", "x", "y", "z"], dtype=object),
+                 {"long_name": "quaternion component, scalar first"}),
     }
     ds = xr.Dataset(
         {
@@ -209,31 +245,38 @@ def build_dataset(study, data, variant):
                            {"units": W, "long_name": "rendered irradiance on the diode's sensitive area"}),
             "irradiance_se": (("time", "diode", "component"), data["rendered_se"],
                               {"units": W, "long_name": "Monte-Carlo standard error of irradiance"}),
-            "samples": (("time", "diode", "component"), data["samples"], {"long_name": "rays traced"}),
+            "samples": (("time", "diode", "component"), data["samples"], {"units": "1", "long_name": "rays traced"}),
             "analytic": (("time", "diode", "component"), analytic,
                          {"units": W, "long_name": "analytic model: aperture overlap response (direct), "
                                                    "Bhanderi cell sum on the native map (albedo)"}),
             "analytic_reference": (("time", "diode", "component"), analytic_ref,
                                    {"units": W, "long_name": f"analytic reference of the check (albedo on the map "
                                                              f"refined {CHECK_REFINE}x{CHECK_REFINE})"}),
-            "albedo_discretisation_bound": (("time", "diode"), bound, {"units": W}),
-            "sun_dir_body": (("time", "xyz"), g.sun_dir_body, {"long_name": "unit satellite->Sun vector",
+            "albedo_discretisation_bound": (("time", "diode"), bound,
+                                            {"units": W, "long_name": "estimated cell-discretisation error of "
+                                                                      "the refined analytic albedo"}),
+            "sun_dir_body": (("time", "xyz"), g.sun_dir_body, {"units": "1", "long_name": "unit satellite->Sun vector",
                                                                  "frame": "body"}),
             "sun_scale": ("time", study.sun_scale(slice(0, n)),
-                          {"long_name": "factor on the solar constant (1, or (1 AU / r)^2 with distance scaling)"}),
-            "sun_dir_gcrs": (("time", "xyz"), g.sun_dir_gcrs, {"long_name": "unit satellite->Sun vector", "frame": "GCRS"}),
-            "r_sat_gcrs": (("time", "xyz"), g.r_sat_gcrs_m, {"units": "m", "frame": "GCRS"}),
-            "r_sat_ecef": (("time", "xyz"), g.r_sat_ecef_m, {"units": "m", "frame": "ITRS"}),
+                          {"units": "1", "long_name": "factor on the solar constant (1, or (1 AU / r)^2 with distance scaling)"}),
+            "sun_dir_gcrs": (("time", "xyz"), g.sun_dir_gcrs, {"units": "1", "long_name": "unit satellite->Sun vector",
+                                                               "frame": "GCRS"}),
+            "r_sat_gcrs": (("time", "xyz"), g.r_sat_gcrs_m, {"units": "m", "long_name": "satellite position", "frame": "GCRS"}),
+            "r_sat_ecef": (("time", "xyz"), g.r_sat_ecef_m, {"units": "m", "long_name": "satellite position", "frame": "ITRS"}),
             "illumination": ("time", g.illumination,
-                             {"long_name": "visible fraction of the solar disc (conical Earth shadow)"}),
+                             {"units": "1", "long_name": "visible fraction of the solar disc (conical Earth shadow)"}),
             "sunlit_cylindrical": ("time", g.sunlit_cylindrical.astype(np.int8),
-                                   {"long_name": "sunlit under the thesis' cylindrical shadow (eqs. 4.6-4.10)"}),
+                                   {"units": "1", "long_name": "1 where sunlit under the thesis' cylindrical shadow "
+                                                               "(eqs. 4.6-4.10)"}),
             "q_gcrs_from_body": (("time", "quat"), study.attitude.q_gcrs_from_body,
-                                 {"long_name": "attitude quaternion, scalar first, rotates body vectors into GCRS"}),
-            "valid": ("time", data["valid"].astype(np.int8)),
-            "normal_body": (("diode", "xyz"), cfg.normals, {"frame": "body"}),
+                                 {"units": "1", "long_name": "attitude quaternion, scalar first, rotates body "
+                                                             "vectors into GCRS"}),
+            "valid": ("time", data["valid"].astype(np.int8),
+                      {"units": "1", "long_name": "1 where the orbit and the rendering are valid"}),
+            "normal_body": (("diode", "xyz"), cfg.normals, {"units": "1", "long_name": "diode normal",
+                                                           "frame": "body"}),
             "fov_deg": ("diode", cfg.fov_deg, {"units": "deg", "long_name": "design field of view (eq. 4.15)"}),
-            "dead": ("diode", cfg.dead.astype(np.int8)),
+            "dead": ("diode", cfg.dead.astype(np.int8), {"units": "1", "long_name": "1 for a dead diode"}),
         },
         coords=coords,
     )
@@ -254,32 +297,135 @@ def build_dataset(study, data, variant):
         "software": json.dumps(_versions(), sort_keys=True),
         "e_sun_w_m2": study.opts.e_sun_w_m2,
         "period_s": float(orbital_period_s(study.orbit)),
+        "tle_age_days": float(_tle_age_days(study)),
+        "warnings": "\n".join(getattr(study, "notes", [])),
+        "time_scale": "UTC",
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "command_line": shlex.join([os.path.basename(sys.argv[0]) or "python"] + sys.argv[1:]),
+        "sunsim_version": __version__ + (f" (git {_git_commit()})" if _git_commit() else ""),
     })
     flags, report = check_run(ds)
     ds["albedo_z"] = (("time", "diode"), flags["albedo_z"],
-                      {"long_name": "(rendered - analytic reference) / sqrt(se^2 + bound^2)"})
+                      {"units": "1", "long_name": "(rendered - analytic reference) / sqrt(se^2 + bound^2)"})
     ds["outlier"] = (("time", "diode", "component"), np.stack([flags["direct"], flags["albedo"]], axis=-1).astype(np.int8),
-                     {"long_name": "1 where outside the analytic check's tolerance"})
+                     {"units": "1", "long_name": "1 where outside the analytic check's tolerance"})
     ds.attrs["check"] = json.dumps(report, sort_keys=True)
     ds.attrs["check_pass"] = int(report["pass"])
     return ds, report
 
 
-def execute(opts, *, progress=None, log=None):
-    """Run (or resume) a study; return (output path, Dataset, check report)."""
-    log = log or (lambda msg: None)
-    check_writable(opts.output)
-    if os.path.exists(opts.output):
-        raise FileExistsError(f"{opts.output} exists already; choose another --output or delete it")
+DEFAULT_FOLDER = "runs"
+
+
+def default_output(opts, folder=DEFAULT_FOLDER):
+    """Return the output path of a run given no ``output``: ``folder/default.nc`` or ``default-N.nc``.
+
+    The first of these that already holds this run (a finished file or a partial folder with identical
+    settings) is reused, so the same command repeats and resumes; otherwise the first free name, so a
+    run with other settings never collides with an earlier one.
+    """
+    digest = spec_digest(opts.spec())
+    for i in range(1, 10000):
+        path = os.path.join(folder, "default.nc" if i == 1 else f"default-{i}.nc")
+        partial = ChunkStore(path, {}).folder
+        if os.path.exists(path):
+            if _options_digest(path) == digest:
+                return path
+            continue
+        if os.path.isdir(partial):
+            if ChunkStore.stored_digest(path) in (digest, None):
+                return path
+            continue
+        return path
+    raise OutputError(f"{folder} holds 9999 default runs; give --output")
+
+
+def _options_digest(path):
+    """Return the settings digest of a finished run file, or None if it is not a readable run file."""
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:         # the attributes only: a day's run file holds ~1 GB of arrays
+            options = f.attrs.get("options")
+    except OSError:
+        return None
+    if options is None:
+        return None
+    return spec_digest(json.loads(options.decode() if isinstance(options, bytes) else str(options)))
+
+
+def prepare(opts):
+    """Return a ready :class:`simcore.pipeline.run.PreparedRun` of ``opts`` after every check of its inputs; raise a
+    UserError (nothing written) for the first that fails. ``study.notes`` holds the warnings."""
+    check_numbers(opts)
+    variant = check_variant(opts.variant)
     study = PreparedRun(opts)
+    check_map(study.map, getattr(opts, "allow_bright_map", False))
+    if study.config.dead.all():
+        raise InvalidInputError(f"all {study.config.n_diodes} diodes of {study.config.name} are dead (--dead "
+                                f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
+    study.variant = variant
+    study.notes = [n for n in (tle_age_note(study.orbit, study.epochs),) if n]
+    return study
+
+
+def execute(opts, *, progress=None, log=None):
+    """Run (or resume) a study; return (output path, Dataset, check report).
+
+    Every input is checked first (:func:`prepare`): a rejected run writes nothing. An
+    output file made with identical settings is returned as it is (nothing rendered); one made with other
+    settings is replaced only with ``opts.overwrite``.
+    """
+    log = log or (lambda msg: None)
+    study = prepare(opts)
+    for note in study.notes:
+        log(f"warning: {note}")
+    if opts.output is None:
+        os.makedirs(DEFAULT_FOLDER, exist_ok=True)
+        opts = dataclasses.replace(opts, output=default_output(opts))
+        study.opts = opts
+    check_writable(opts.output)
+    finished = _finished(opts, log)
+    if finished is not None:
+        return finished
     store = ChunkStore(opts.output, opts.spec()).open()
-    ranges = chunk_ranges(len(study.epochs), opts.chunk_epochs)
-    done = set(store.done())
-    todo = [r for r in ranges if r not in done]
+    try:
+        # Another process may have finished this output while we waited for its lock.
+        finished = _finished(opts, log)
+        if finished is not None:
+            store.close()
+            if not store.done():
+                store.remove()
+            return finished
+        return _render_and_write(study, store, progress, log)
+    finally:
+        store.close()
+
+
+def _finished(opts, log):
+    """Return (path, ds, report) of an existing output with identical settings; None if there is none;
+    raise if one with other settings stands there (without ``overwrite``)."""
+    if not os.path.exists(opts.output):
+        return None
+    same = _options_digest(opts.output) == spec_digest(opts.spec())
+    if same:
+        log(f"{opts.output} is already finished with identical settings: nothing to render")
+        ds = open_run(opts.output)
+        return opts.output, ds, json.loads(ds.attrs["check"])
+    if not opts.overwrite:
+        raise OutputError(f"{opts.output} exists and was made with other settings; add --overwrite to replace "
+                          "it, or choose another --output")
+    return None
+
+
+def _render_and_write(study, store, progress, log):
+    opts = study.opts
+    n = len(study.epochs)
+    done = store.done()
+    todo = missing_ranges(n, opts.chunk_epochs, done)
     if done:
-        log(f"resuming: {len(done)} of {len(ranges)} chunks already in {store.folder}")
+        log(f"resuming: {sum(b - a for a, b in done)} of {n} epochs already in {store.folder}")
     from tqdm import tqdm
-    bar = tqdm(total=len(study.epochs), initial=sum(b - a for a, b in done), unit="epoch",
+    bar = tqdm(total=n, initial=sum(b - a for a, b in done), unit="epoch",
                disable=(not sys.stderr.isatty()) if progress is None else not progress, desc="rendering")
     try:
         for start, stop in todo:
@@ -287,13 +433,14 @@ def execute(opts, *, progress=None, log=None):
             bar.update(stop - start)
     finally:
         bar.close()
-    data = store.load_all(len(study.epochs))
-    variant = study._renderer.variant if study._renderer is not None else choose_variant(opts.variant)
+    data = store.load_all(n)
+    variant = study._renderer.variant if study._renderer is not None else study.variant
     ds, report = build_dataset(study, data, variant)
 
     def write(tmp):
         ds.to_netcdf(tmp, engine="h5netcdf")
-    atomic_write(opts.output, write)
+    # The temporary file lies in the partial folder: a crash here leaves it where the resume cleans up.
+    atomic_write(opts.output, write, tmp_dir=store.folder)
     store.remove()
     return opts.output, ds, report
 
@@ -305,18 +452,18 @@ REQUIRED_VARIABLES = ("irradiance", "irradiance_se", "analytic", "analytic_refer
 def open_run(path):
     """Return the Dataset of a finished run file, or raise ValueError saying why it is not one."""
     if not os.path.exists(path):
-        raise FileNotFoundError(f"no run file at {path}")
+        raise InputNotFoundError(f"no run file at {path}")
     if os.path.isdir(path):
-        raise ValueError(f"{path} is a folder, not a run file (.nc); a folder ending in .partial is an "
+        raise InvalidInputError(f"{path} is a folder, not a run file (.nc); a folder ending in .partial is an "
                          "unfinished run: finish it by running the same 'sunsim run' command again")
     try:
         ds = xr.load_dataset(path, engine="h5netcdf")      # in memory, file closed
     except Exception as exc:  # h5py/netCDF raise many types for a corrupt file
-        raise ValueError(f"{path} is not a readable netCDF run file ({type(exc).__name__}: {exc}); "
+        raise InvalidInputError(f"{path} is not a readable netCDF run file ({type(exc).__name__}: {exc}); "
                          "was it written by 'sunsim run'?") from None
     missing = [v for v in REQUIRED_VARIABLES if v not in ds]
     if ds.attrs.get("title") != "sunsim diode irradiance run" or missing:
-        raise ValueError(f"{path} is not a sunsim run file (missing {', '.join(missing) or 'its sunsim title'}); "
+        raise InvalidInputError(f"{path} is not a sunsim run file (missing {', '.join(missing) or 'its sunsim title'}); "
                          "give a file written by 'sunsim run'")
     return ds
 
@@ -328,8 +475,16 @@ def check_run(ds):
     scale = float(ds.attrs.get("e_sun_w_m2", E_SUN_W_M2)) * ds["sun_scale"].values[:, None]
     irr, se, ref = ds["irradiance"].values, ds["irradiance_se"].values, ds["analytic_reference"].values
     considered = np.broadcast_to(ds["valid"].values.astype(bool)[:, None], (n, k))
-    return _check.compare(irr[..., 0], se[..., 0], ref[..., 0], irr[..., 1], se[..., 1], ref[..., 1],
-                          ds["albedo_discretisation_bound"].values, scale * cos_inc, considered=considered)
+    flags, report = _check.compare(irr[..., 0], se[..., 0], ref[..., 0], irr[..., 1], se[..., 1], ref[..., 1],
+                                   ds["albedo_discretisation_bound"].values, scale * cos_inc, considered=considered)
+    # In the Earth's shadow every value is 0 and agrees trivially: a span without Sun has checked nothing.
+    report["sunlit_epochs"] = int(np.count_nonzero(ds["valid"].values.astype(bool) & (ds["illumination"].values > 0)))
+    if report["sunlit_epochs"] == 0:
+        report["pass"] = False
+        report["verdict"] = "no sunlit data"
+    else:
+        report["verdict"] = "PASS" if report["pass"] else "FAIL"
+    return flags, report
 
 
 def options_of(ds, path):

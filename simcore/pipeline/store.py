@@ -6,10 +6,20 @@ A run writing ``out.nc`` keeps its finished chunks in ``out.nc.partial/``:
 name and renamed into place, so a chunk file is complete or absent, never
 half-written. Started again with the same spec, the run skips finished
 chunks; with a different spec it refuses (and says so) rather than mixing
-results. The final file is written as ``out.nc.tmp-<pid>`` and renamed over
-``out.nc`` (atomic on one file system), then the partial folder is removed:
-no partial or corrupt file ever stands under the final name.
+results (a partial folder without any finished chunk holds nothing to lose
+and is taken over). The final file is written inside the partial folder and
+renamed over ``out.nc`` (atomic on one file system), then the partial folder
+is removed: no partial or corrupt file ever stands under the final name, and
+a temporary file left by a crash lies in the partial folder, which the next
+run cleans.
+
+While a run owns the folder it holds an exclusive ``flock`` on
+``out.nc.partial/lock``: a second process asking for the same output is
+refused with a message instead of writing the same chunks. The kernel drops
+the lock when the owner dies, so a killed run never blocks its resume.
 """
+import errno
+import fcntl
 import hashlib
 import json
 import os
@@ -18,6 +28,8 @@ import shutil
 import tempfile
 
 import numpy as np
+
+from simcore.errors import InvalidInputError, OutputError, OutputFolderMissingError, OutputIsAFolderError
 
 _CHUNK = re.compile(r"^chunk_(\d{9})_(\d{9})\.npz$")
 
@@ -41,15 +53,26 @@ def _fsync_dir(path):
         os.close(fd)
 
 
-def atomic_write(path, write):
-    """Call ``write(tmp_path)`` then rename tmp over ``path`` (same folder, fsynced)."""
+def _umask():
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write(path, write, tmp_dir=None):
+    """Call ``write(tmp_path)`` then rename tmp over ``path`` (fsynced); the file gets the user's umask.
+
+    ``tmp_dir`` (default: the folder of ``path``) must be on the same file system as ``path``.
+    """
     folder = os.path.dirname(os.path.abspath(path)) or "."
-    fd, tmp = tempfile.mkstemp(prefix=os.path.basename(path) + ".tmp-", dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=os.path.basename(path) + ".tmp-", dir=tmp_dir or folder)
     os.close(fd)
     try:
         write(tmp)
         with open(tmp, "rb+") as f:
             os.fsync(f.fileno())
+        # mkstemp creates 0600; a result file is as readable as any file the user creates.
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
         _fsync_dir(folder)
     except BaseException:
@@ -59,14 +82,24 @@ def atomic_write(path, write):
 
 
 def check_writable(path):
-    """Raise PermissionError/FileNotFoundError with a clear message if ``path`` cannot be written."""
+    """Raise an :class:`~simcore.errors.UserError` saying why ``path`` cannot be written, or return None.
+
+    The check creates and removes a probe file in the folder: permission
+    bits alone do not tell (root, read-only mounts, ``/proc``).
+    """
     folder = os.path.dirname(os.path.abspath(path)) or "."
     if not os.path.isdir(folder):
-        raise FileNotFoundError(f"cannot write {path}: the folder {folder} does not exist; create it or choose another --output")
-    if not os.access(folder, os.W_OK):
-        raise PermissionError(f"cannot write {path}: the folder {folder} is not writable; choose another --output")
+        raise OutputFolderMissingError(f"cannot write {path}: the folder {folder} does not exist; create it or "
+                                       "choose another --output")
     if os.path.isdir(path):
-        raise IsADirectoryError(f"cannot write {path}: it is a folder; give a file name such as run.nc")
+        raise OutputIsAFolderError(f"cannot write {path}: it is a folder; give a file name such as run.nc")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".sunsim-probe-", dir=folder)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: the folder {folder} accepts no new files "
+                          f"({exc.strerror or exc}); choose another --output") from None
+    os.close(fd)
+    os.remove(probe)
 
 
 class ChunkStore:
@@ -79,25 +112,82 @@ class ChunkStore:
         self.digest = spec_digest(spec)
 
     def open(self):
-        """Create or reopen the partial folder; raise if it belongs to a different run."""
+        """Create or reopen the partial folder and lock it; raise if another process holds it or it
+        belongs to a different run."""
         check_writable(self.final_path)
-        spec_file = os.path.join(self.folder, "spec.json")
-        if os.path.isdir(self.folder) and os.path.exists(spec_file):
-            with open(spec_file) as f:
-                old = json.load(f)
-            if old.get("digest") != self.digest:
-                raise ValueError(
-                    f"{self.folder} holds a partial run made with different settings; resume it with its original "
-                    "command, or delete that folder (or choose another --output) to start afresh")
-            return self
-        os.makedirs(self.folder, exist_ok=True)
-        payload = json.dumps({"digest": self.digest, "spec": self.spec}, sort_keys=True, indent=1, default=str)
+        self._lock()
+        try:
+            self._clean_temporaries()
+            spec_file = os.path.join(self.folder, "spec.json")
+            if os.path.exists(spec_file):
+                with open(spec_file) as f:
+                    old = json.load(f)
+                if old.get("digest") == self.digest:
+                    return self
+                if self.done():
+                    raise InvalidInputError(
+                        f"{self.folder} holds a partial run made with different settings; resume it with its "
+                        "original command, or delete that folder (or choose another --output) to start afresh")
+            payload = json.dumps({"digest": self.digest, "spec": self.spec}, sort_keys=True, indent=1, default=str)
 
-        def write(tmp):
-            with open(tmp, "w") as f:
-                f.write(payload)
-        atomic_write(spec_file, write)
+            def write(tmp):
+                with open(tmp, "w") as f:
+                    f.write(payload)
+            atomic_write(spec_file, write)
+        except BaseException:
+            self.close()
+            raise
         return self
+
+    @staticmethod
+    def stored_digest(final_path):
+        """Return the settings digest of the partial run of ``final_path`` (None if it has none)."""
+        try:
+            with open(os.path.join(final_path + ".partial", "spec.json")) as f:
+                return json.load(f).get("digest")
+        except (OSError, ValueError):
+            return None
+
+    def _lock(self):
+        """Take the exclusive lock of the partial folder (created if needed); raise OutputError if held."""
+        lock_path = os.path.join(self.folder, "lock")
+        for _ in range(10):
+            os.makedirs(self.folder, exist_ok=True)
+            fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o666)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                if exc.errno not in (errno.EAGAIN, errno.EACCES):
+                    os.close(fd)
+                    raise
+                owner = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
+                os.close(fd)
+                raise OutputError(f"{self.final_path} is being written by another sunsim process (pid {owner}); "
+                                  "wait for it to finish or choose another --output") from None
+            # The owner before us may have finished and removed the folder while we waited on its lock
+            # file: then our lock is on a deleted file, and we start over on a fresh one.
+            try:
+                same = os.stat(lock_path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                os.ftruncate(fd, 0)
+                os.write(fd, str(os.getpid()).encode())
+                self._lock_fd = fd
+                return
+            os.close(fd)
+        raise OutputError(f"{self.final_path}: cannot lock {lock_path}; another process keeps recreating it")
+
+    def _clean_temporaries(self):
+        for name in os.listdir(self.folder):
+            if ".tmp-" in name:
+                os.remove(os.path.join(self.folder, name))
+
+    def close(self):
+        """Release the lock (the folder stays, for a resume)."""
+        fd, self._lock_fd = getattr(self, "_lock_fd", None), None
+        if fd is not None:
+            os.close(fd)
 
     def done(self):
         """Return sorted (start, stop) index ranges of the finished chunks."""
@@ -133,11 +223,28 @@ class ChunkStore:
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     def remove(self):
+        """Delete the partial folder (the run is finished) and release the lock."""
         shutil.rmtree(self.folder, ignore_errors=True)
+        self.close()
 
 
 def chunk_ranges(n_total, chunk):
     """Return [(start, stop), ...] covering range(n_total) in chunks of ``chunk``."""
     if chunk <= 0:
-        raise ValueError(f"chunk size must be positive, got {chunk}")
+        raise InvalidInputError(f"chunk size must be positive, got {chunk}")
     return [(s, min(s + chunk, n_total)) for s in range(0, n_total, chunk)]
+
+
+def missing_ranges(n_total, chunk, done):
+    """Return the chunks of at most ``chunk`` epochs that cover what ``done`` (start, stop) ranges do not.
+
+    Finished chunks of any size are kept, so a run resumed with another chunk size renders only the gaps.
+    """
+    covered = np.zeros(n_total, dtype=bool)
+    for a, b in done:
+        covered[a:b] = True
+    out = []
+    edges = np.flatnonzero(np.diff(np.concatenate([[1], covered.astype(np.int8), [1]])))
+    for a, b in zip(edges[::2], edges[1::2]):
+        out += [(int(a) + s, int(a) + e) for s, e in chunk_ranges(int(b - a), chunk)]
+    return out

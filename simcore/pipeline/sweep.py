@@ -53,6 +53,8 @@ def run_sweep(points, *, scheduler=None, workers=2, log=print):
     if scheduler:
         client, cluster = Client(scheduler), None
     else:
+        # ":0": any free port. None still asks for 8787, and a second sweep (or any Dask) on the machine then
+        # trips over the first one's dashboard.
         cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
                                dashboard_address=":0")   # any free port: never "8787 in use"
         client = Client(cluster)

@@ -53,6 +53,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from simcore.errors import InvalidInputError
+
 FAULT_KINDS = ("OFF", "STUCK_CURRENT", "STUCK_MAX", "STUCK_RAND", "RAND")
 FAULT_NOISE_STEP_SIGMA = 0.75   # Basilisk faultNoiseStd 0.5 x 1.5 (coarseSunSensor.cpp, Reset)
 FAULT_NOISE_BOUND = 2.0         # Basilisk boundsFault (coarseSunSensor.cpp, Reset)
@@ -66,9 +68,9 @@ def kelly_fit(cos_theta, kelly_factor, k_power=2.0):
     """
     c = np.clip(np.asarray(cos_theta, dtype=float), 0.0, None)
     if not (np.isfinite(kelly_factor) and kelly_factor >= 0):
-        raise ValueError(f"the Kelly factor must be >= 0 (0 = pure cosine), got {kelly_factor}")
+        raise InvalidInputError(f"the Kelly factor must be >= 0 (0 = pure cosine), got {kelly_factor}")
     if not (np.isfinite(k_power) and k_power > 0):
-        raise ValueError(f"the Kelly power must be > 0 (Basilisk's kPower, default 2), got {k_power}")
+        raise InvalidInputError(f"the Kelly power must be > 0 (Basilisk's kPower, default 2), got {k_power}")
     if kelly_factor <= 1e-10:
         return np.ones_like(c)
     return 1.0 - np.exp(-c ** k_power / kelly_factor)
@@ -94,9 +96,9 @@ def gauss_markov(n, k, sigma, tau_s, dt_s, rng):
     Each of the k columns is independent.
     """
     if not (np.isfinite(sigma) and sigma >= 0):
-        raise ValueError(f"the Gauss-Markov standard deviation must be >= 0, got {sigma}")
+        raise InvalidInputError(f"the Gauss-Markov standard deviation must be >= 0, got {sigma}")
     if not (np.isfinite(tau_s) and tau_s > 0):
-        raise ValueError(f"the Gauss-Markov correlation time must be > 0 s, got {tau_s}")
+        raise InvalidInputError(f"the Gauss-Markov correlation time must be > 0 s, got {tau_s}")
     phi = np.exp(-dt_s / tau_s)
     w = rng.standard_normal((n, k)) * sigma * np.sqrt(1.0 - phi * phi)
     x = np.empty((n, k))
@@ -113,9 +115,9 @@ def bounded_random_walk(n, k, step_sigma, bound, rng, x0=0.0):
     GaussMarkov with propMatrix = 1 and stateBounds = bound. Every sample lies within the bounds.
     """
     if not (np.isfinite(step_sigma) and step_sigma >= 0):
-        raise ValueError(f"the random-walk step standard deviation must be >= 0, got {step_sigma}")
+        raise InvalidInputError(f"the random-walk step standard deviation must be >= 0, got {step_sigma}")
     if not (np.isfinite(bound) and bound >= 0):
-        raise ValueError(f"the random-walk bound must be >= 0, got {bound}")
+        raise InvalidInputError(f"the random-walk bound must be >= 0, got {bound}")
     w = rng.standard_normal((n, k)) * step_sigma
     x = np.empty((n, k))
     b = float(bound)
@@ -160,29 +162,29 @@ class SensorErrors:
             v = getattr(self, f.name)
             if f.name == "seed":
                 if int(v) != v:
-                    raise ValueError(f"sensor errors: seed must be an integer, got {v}")
+                    raise InvalidInputError(f"sensor errors: seed must be an integer, got {v}")
                 continue
             if f.name == "kelly" and v is None:
                 continue
             if not np.isfinite(v):
-                raise ValueError(f"sensor errors: {f.name} must be a finite number, got {v}")
+                raise InvalidInputError(f"sensor errors: {f.name} must be a finite number, got {v}")
         for name in ("white", "gm_sigma", "walk_sigma", "misalign_deg", "kelly"):
             if getattr(self, name) is not None and getattr(self, name) < 0:
-                raise ValueError(f"sensor errors: {name} must be >= 0 (a standard deviation or size), "
+                raise InvalidInputError(f"sensor errors: {name} must be >= 0 (a standard deviation or size), "
                                  f"got {getattr(self, name)}")
         if self.walk_bound < 0:
-            raise ValueError(f"sensor errors: the walk bound must be >= 0, got {self.walk_bound}; "
+            raise InvalidInputError(f"sensor errors: the walk bound must be >= 0, got {self.walk_bound}; "
                              "give walk=STEP_SIGMA:BOUND with BOUND >= 0")
         if self.walk_sigma > 0 and self.walk_bound == 0:
-            raise ValueError("sensor errors: a random walk needs a bound > 0 (walk=STEP_SIGMA:BOUND)")
+            raise InvalidInputError("sensor errors: a random walk needs a bound > 0 (walk=STEP_SIGMA:BOUND)")
         if self.gm_tau_s <= 0:
-            raise ValueError(f"sensor errors: the Gauss-Markov correlation time must be > 0 s, got {self.gm_tau_s}")
+            raise InvalidInputError(f"sensor errors: the Gauss-Markov correlation time must be > 0 s, got {self.gm_tau_s}")
         if self.scale <= -1:
-            raise ValueError(f"sensor errors: scale must be > -1 (a relative error), got {self.scale}")
+            raise InvalidInputError(f"sensor errors: scale must be > -1 (a relative error), got {self.scale}")
         if self.sat_max <= self.sat_min:
-            raise ValueError(f"sensor errors: saturation needs sat_min < sat_max, got {self.sat_min}, {self.sat_max}")
+            raise InvalidInputError(f"sensor errors: saturation needs sat_min < sat_max, got {self.sat_min}, {self.sat_max}")
         if self.kelly_power <= 0:
-            raise ValueError(f"sensor errors: the Kelly power must be > 0, got {self.kelly_power}")
+            raise InvalidInputError(f"sensor errors: the Kelly power must be > 0, got {self.kelly_power}")
 
     @property
     def noise_sigma(self):
@@ -205,13 +207,13 @@ class Fault:
 
     def __post_init__(self):
         if self.kind not in FAULT_KINDS:
-            raise ValueError(f"unknown fault {self.kind!r}; use one of {', '.join(FAULT_KINDS)}")
+            raise InvalidInputError(f"unknown fault {self.kind!r}; use one of {', '.join(FAULT_KINDS)}")
         if int(self.diode) != self.diode or self.diode < 0:
-            raise ValueError(f"a fault's diode must be an index >= 0, got {self.diode}")
+            raise InvalidInputError(f"a fault's diode must be an index >= 0, got {self.diode}")
         if not np.isfinite(self.onset_s):
-            raise ValueError(f"a fault's onset must be a time in seconds, got {self.onset_s}")
+            raise InvalidInputError(f"a fault's onset must be a time in seconds, got {self.onset_s}")
         if self.end_s is not None and not self.end_s > self.onset_s:
-            raise ValueError(f"a fault's end ({self.end_s} s) must come after its onset ({self.onset_s} s)")
+            raise InvalidInputError(f"a fault's end ({self.end_s} s) must come after its onset ({self.onset_s} s)")
 
     def active(self, t_s):
         """Return the mask (N,) of samples at which the fault is active: onset_s <= t < end_s."""
@@ -230,7 +232,7 @@ def misalignment_rotations(k, sigma_rad, rng):
     between a true and a nominal normal is Rayleigh-distributed with scale sigma.
     """
     if not (np.isfinite(sigma_rad) and sigma_rad >= 0):
-        raise ValueError(f"the misalignment must be a non-negative angle, got {sigma_rad} rad")
+        raise InvalidInputError(f"the misalignment must be a non-negative angle, got {sigma_rad} rad")
     omega = rng.normal(0.0, sigma_rad, size=(k, 3))
     angle = np.linalg.norm(omega, axis=1)
     axis = np.where(angle[:, None] > 0, omega / np.where(angle > 0, angle, 1.0)[:, None], 0.0)
@@ -246,10 +248,10 @@ def check_faults(faults, t_s, n_diodes):
     t = np.asarray(t_s, dtype=float)
     for f in faults:
         if not 0 <= f.diode < n_diodes:
-            raise ValueError(f"fault {f.kind}@{f.diode}: diode {f.diode} does not exist; this run has diodes "
+            raise InvalidInputError(f"fault {f.kind}@{f.diode}: diode {f.diode} does not exist; this run has diodes "
                              f"0..{n_diodes - 1}")
         if not t[0] <= f.onset_s <= t[-1]:
-            raise ValueError(f"fault {f.kind}@{f.diode}: onset {f.onset_s:g} s lies outside the run "
+            raise InvalidInputError(f"fault {f.kind}@{f.diode}: onset {f.onset_s:g} s lies outside the run "
                              f"({t[0]:g} .. {t[-1]:g} s since its start)")
 
 
@@ -264,11 +266,11 @@ def apply_errors(u_true, t_s, errors=None, faults=(), rng=None):
     """
     u = np.array(u_true, dtype=float)
     if u.ndim != 2:
-        raise ValueError(f"signals must be (N, K) (time leads), got shape {u.shape}")
+        raise InvalidInputError(f"signals must be (N, K) (time leads), got shape {u.shape}")
     n, k = u.shape
     t = np.asarray(t_s, dtype=float)
     if t.shape != (n,):
-        raise ValueError(f"t_s must be (N,) = ({n},), got shape {t.shape}")
+        raise InvalidInputError(f"t_s must be (N,) = ({n},), got shape {t.shape}")
     errors = errors or SensorErrors()
     faults = tuple(faults)
     check_faults(faults, t, k)
@@ -323,7 +325,7 @@ def _number(text, what):
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"{what}: {text!r} is not a number") from None
+        raise InvalidInputError(f"{what}: {text!r} is not a number") from None
 
 
 def parse_sensor_errors(spec):
@@ -338,14 +340,14 @@ def parse_sensor_errors(spec):
         key, sep, value = item.partition("=")
         key = key.strip().lower()
         if not sep or key not in _ERROR_KEYS:
-            raise ValueError(f"--sensor-errors: {item!r} is not KEY=VALUE with KEY one of {', '.join(_ERROR_KEYS)}")
+            raise InvalidInputError(f"--sensor-errors: {item!r} is not KEY=VALUE with KEY one of {', '.join(_ERROR_KEYS)}")
         names = _ERROR_KEYS[key]
         parts = value.split(":")
         optional_second = key == "kelly"
         if len(parts) != len(names) and not (optional_second and len(parts) == 1):
             form = {"gm": "gm=SIGMA:TAU_S", "walk": "walk=STEP_SIGMA:BOUND", "sat": "sat=MIN:MAX",
                     "kelly": "kelly=KAPPA[:POWER]"}.get(key, f"{key}=VALUE")
-            raise ValueError(f"--sensor-errors: {item!r} must be written {form}")
+            raise InvalidInputError(f"--sensor-errors: {item!r} must be written {form}")
         for name, part in zip(names, parts):
             kw[name] = _number(part, f"--sensor-errors {key}")
     if "seed" in kw:
@@ -353,7 +355,7 @@ def parse_sensor_errors(spec):
     try:
         return SensorErrors(**kw)
     except ValueError as exc:
-        raise ValueError(f"--sensor-errors: {str(exc).removeprefix('sensor errors: ')}") from None
+        raise InvalidInputError(f"--sensor-errors: {str(exc).removeprefix('sensor errors: ')}") from None
 
 
 _FAULT_RE = re.compile(r"^\s*([A-Za-z_]+)\s*@\s*(\d+)\s*:\s*([^-\s][^-]*?)\s*(?:-\s*(.+?))?\s*$")
@@ -369,14 +371,14 @@ def parse_faults(spec):
             continue
         m = _FAULT_RE.match(item)
         if not m:
-            raise ValueError(f"--faults: {item.strip()!r} is not KIND@DIODE:ONSET_S[-END_S] (e.g. STUCK_MAX@3:2000)")
+            raise InvalidInputError(f"--faults: {item.strip()!r} is not KIND@DIODE:ONSET_S[-END_S] (e.g. STUCK_MAX@3:2000)")
         kind = m.group(1).upper()
         if kind not in FAULT_KINDS:
-            raise ValueError(f"--faults: unknown fault {m.group(1)!r}; use one of {', '.join(FAULT_KINDS)}")
+            raise InvalidInputError(f"--faults: unknown fault {m.group(1)!r}; use one of {', '.join(FAULT_KINDS)}")
         onset = _number(m.group(3), "--faults onset")
         end = _number(m.group(4), "--faults end") if m.group(4) else None
         try:
             out.append(Fault(int(m.group(2)), kind, onset, end))
         except ValueError as exc:
-            raise ValueError(f"--faults: {exc}") from None
+            raise InvalidInputError(f"--faults: {exc}") from None
     return tuple(out)
