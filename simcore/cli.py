@@ -77,6 +77,9 @@ def _add_render_options(p):
                    help="satellite configuration: a shipped name (tilt0_fov90, tilt{20,25,30}_fov{70,75}) "
                         "or a .toml file (scenes/FORMAT.md); default %(default)s")
     p.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz (overrides the tumble)")
+    p.add_argument("--dynamics", metavar="INERTIA",
+                   help="torque-free Euler dynamics instead of the constant tumble, starting at --spin-rate about "
+                        "the body diagonal; INERTIA in kg m^2: 'IXX,IYY,IZZ' or 'IXX,IYY,IZZ,IXY,IXZ,IYZ'")
     p.add_argument("--accuracy", nargs=2, type=float, metavar=("DIRECT", "ALBEDO"), default=(0.002, 0.01),
                    help="target relative standard errors of direct and albedo irradiance (default 0.002 0.01)")
     p.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"),
@@ -101,7 +104,7 @@ def run_options(args):
     samples = args.samples
     return RunOptions(
         config=args.config, tle=args.tle, satellite=args.satellite, start=args.start, duration_s=args.duration,
-        step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude,
+        step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude, dynamics=args.dynamics,
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
         dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
