@@ -17,17 +17,19 @@ N epochs give (N, 3) vectors and (N, 4) quaternions.
   sec. 6.2; Lefferts, Markley & Shuster 1982): a body-frame rotation-vector attitude error
   ``R_true = R_est Exp(dtheta)``, gyro model ``w = w_true + b + n_v``, ``db/dt = n_u``
   (Farrenkopf), discrete process noise of M&C eq. 6.93, unit-vector measurements with
-  covariance ``sigma^2 I`` (Shuster's QUEST measurement model, M&C eq. 5.31), and
-  innovation gating: a measurement whose normalised innovation squared exceeds the
-  chi-square quantile ``gate_probability`` (3 degrees of freedom) is rejected.
+  covariance ``sigma^2 I`` (Shuster's QUEST measurement model, M&C eq. 5.31) on the two
+  components perpendicular to the predicted vector, and innovation gating: a measurement
+  whose normalised innovation squared exceeds the chi-square 0.9999 quantile (2 degrees of
+  freedom) is rejected.
 """
 import numpy as np
 
-CHI2_3DOF_GATE_99_99 = 21.107548   # chi-square 3 dof, 0.9999 quantile (scipy.stats.chi2.ppf(0.9999, 3))
+CHI2_2DOF_GATE_99_99 = 18.420681   # chi-square 2 dof, 0.9999 quantile: -2 ln(1e-4) (closed form for 2 dof)
 
 
 # ---- small quaternion / rotation helpers (scalar first, Hamilton) --------------------------------
-def _qmul(a, b):
+def quat_mul(a, b):
+    """Return the Hamilton product a * b (..., 4), scalar first."""
     w1, x1, y1, z1 = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     w2, x2, y2, z2 = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
     return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
@@ -172,10 +174,10 @@ class MEKF:
     Error state x = (dtheta (3, rad, body frame), db (3, rad/s)), covariance ``P`` (6, 6).
     ``sigma_v``: gyro angle random walk, rad/s/sqrt(Hz); ``sigma_u``: bias random walk,
     rad/s^(3/2); ``gate``: the innovation-gating threshold on the normalised innovation squared
-    (default: chi-square 3 dof at 0.9999).
+    (default: chi-square 2 dof at 0.9999).
     """
 
-    def __init__(self, q0_ref_from_body, bias0_rad_s, P0, *, sigma_v, sigma_u, gate=CHI2_3DOF_GATE_99_99):
+    def __init__(self, q0_ref_from_body, bias0_rad_s, P0, *, sigma_v, sigma_u, gate=CHI2_2DOF_GATE_99_99):
         self.q = _unit(np.asarray(q0_ref_from_body, dtype=float).reshape(4))
         self.bias = np.asarray(bias0_rad_s, dtype=float).reshape(3).copy()
         self.P = np.asarray(P0, dtype=float).reshape(6, 6).copy()
@@ -190,7 +192,7 @@ class MEKF:
         """Propagate over ``dt_s`` with the gyro's mean rate over the step (body frame, rad/s)."""
         w = np.asarray(omega_meas_rad_s, dtype=float) - self.bias
         dq = rotvec_to_quat(w * dt_s)
-        self.q = _unit(_qmul(self.q, dq))
+        self.q = _unit(quat_mul(self.q, dq))
         # Transition of the body-frame error: dtheta' = -[w x] dtheta - db (exact rotation for the first block).
         Phi = np.eye(6)
         Phi[:3, :3] = quat_to_dcm(dq).T
@@ -203,13 +205,24 @@ class MEKF:
         self.P = Phi @ self.P @ Phi.T + Q
 
     def update_vector(self, b_meas_body, r_ref, sigma_rad):
-        """Fuse one unit-vector measurement; return True if accepted by the innovation gate."""
+        """Fuse one unit-vector measurement; return True if accepted by the innovation gate.
+
+        Only the two components perpendicular to the predicted vector carry attitude
+        information (a unit vector has two degrees of freedom; the component along it is
+        second order in the error, cos(angle) - 1, and would make a large but correct
+        innovation look like an outlier): the update uses those two, with noise sigma^2 each
+        (Shuster's QUEST measurement model, M&C eq. 5.31, restricted to its range).
+        """
         b_meas = _unit(b_meas_body)
         b_pred = self.R_ref_from_body.T @ _unit(r_ref)
-        H = np.zeros((3, 6))
-        H[:, :3] = _skew(b_pred)
-        S = H @ self.P @ H.T + (sigma_rad ** 2) * np.eye(3)
-        nu = b_meas - b_pred
+        # An orthonormal basis (e1, e2) of the plane perpendicular to b_pred.
+        helper = np.eye(3)[int(np.argmin(np.abs(b_pred)))]
+        e1 = _unit(np.cross(b_pred, helper))
+        E = np.stack([e1, np.cross(b_pred, e1)])             # (2, 3)
+        H = np.zeros((2, 6))
+        H[:, :3] = E @ _skew(b_pred)
+        S = H @ self.P @ H.T + (sigma_rad ** 2) * np.eye(2)
+        nu = E @ b_meas
         nis = float(nu @ np.linalg.solve(S, nu))
         self.last_nis = nis
         if not np.isfinite(nis) or nis > self.gate:
@@ -219,7 +232,7 @@ class MEKF:
         I_KH = np.eye(6) - K @ H
         self.P = I_KH @ self.P @ I_KH.T + (sigma_rad ** 2) * K @ K.T     # Joseph form
         self.P = 0.5 * (self.P + self.P.T)
-        self.q = _unit(_qmul(self.q, rotvec_to_quat(dx[:3])))
+        self.q = _unit(quat_mul(self.q, rotvec_to_quat(dx[:3])))
         self.bias = self.bias + dx[3:]
         return True
 
@@ -227,7 +240,7 @@ class MEKF:
 # ---- metrics -----------------------------------------------------------------------------------------
 def attitude_error_body(q_est_ref_from_body, q_true_ref_from_body):
     """Return the attitude error rotation vectors (N, 3), rad, body frame: R_true = R_est Exp(e)."""
-    dq = _qmul(_conj(np.atleast_2d(q_est_ref_from_body)), np.atleast_2d(q_true_ref_from_body))
+    dq = quat_mul(_conj(np.atleast_2d(q_est_ref_from_body)), np.atleast_2d(q_true_ref_from_body))
     dq = np.where(dq[:, :1] < 0, -dq, dq)
     vn = np.linalg.norm(dq[:, 1:], axis=1)
     ang = 2.0 * np.arctan2(vn, dq[:, 0])

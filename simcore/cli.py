@@ -198,9 +198,23 @@ def cmd_validate(args):
     return 0 if report["pass"] else 1
 
 
+def _filter_mekf(args):
+    from simcore.attitude_estimation import cli_mekf
+    return cli_mekf(args)
+
+
+# sunsim estimate --filter NAME: one table, one entry per filter.
+ESTIMATE_FILTERS = {"mekf": _filter_mekf}
+
+
 def cmd_estimate(args):
     """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
     import os
+    if args.filter:
+        return ESTIMATE_FILTERS[args.filter](args)
+    if args.gyro or args.magnetometer or args.no_onboard_albedo or args.initial_error is not None:
+        raise UserError("--gyro, --magnetometer, --no-onboard-albedo and --initial-error belong to an attitude "
+                        "filter; add --filter mekf")
     from simcore.evaluate import evaluate_run
     from simcore.run import open_run
     ds = open_run(args.run)
@@ -316,6 +330,11 @@ def build_parser():
     e.add_argument("--seed", type=int, default=0, help="noise seed")
     e.add_argument("--plots", metavar="DIR", help="write error plots (PNG) to DIR")
     e.add_argument("--json", action="store_true")
+    e.add_argument("--filter", choices=sorted(ESTIMATE_FILTERS),
+                   help="run a filter on the run file instead of the Sun-vector table (mekf: attitude from gyro, "
+                        "magnetometer and Sun sensor; sensor noise on)")
+    from simcore.attitude_estimation import add_mekf_options
+    add_mekf_options(e)
     e.set_defaults(func=cmd_estimate)
 
     w = sub.add_parser("sweep", help="configurations x start dates x spin rates x seeds on Dask, into one dataset")
