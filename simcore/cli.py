@@ -375,6 +375,9 @@ def build_parser():
     ap.add_argument("--json", action="store_true")
     ap.set_defaults(func=cmd_aperture_sweep)
 
+    from simcore.attitude_study import add_parser as _attitude_study_parser
+    _attitude_study_parser(sub)
+
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)
     s.add_argument("--json", action="store_true", help="machine-readable output")
