@@ -73,3 +73,17 @@ def test_cli_rejects_an_inertia_that_is_not_positive_definite(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "not positive definite" in err[0] and "Traceback" not in err[0]
     assert not out.exists() and not (tmp_path / "r.nc.partial").exists()
+
+
+def test_run_options_dynamics_drive_the_study_attitude():
+    # sunsim run --dynamics: the study's attitude is the torque-free motion from --spin-rate about the
+    # tumble axis; with a spherical inertia that is exactly the constant tumble (closed form).
+    from simcore.attitude import tumble
+    from simcore.run import RunOptions, study_geometry
+    _, att, _ = study_geometry(RunOptions(dynamics="0.02,0.02,0.02", duration_s=120.0))
+    ref = tumble(att.t_s)
+    assert _angle_between_rad(att.q_gcrs_from_body, ref.q_gcrs_from_body).max() < 1e-10
+    _, att2, _ = study_geometry(RunOptions(dynamics="0.015,0.018,0.006", duration_s=120.0))
+    assert _angle_between_rad(att2.q_gcrs_from_body, ref.q_gcrs_from_body).max() > np.radians(1)
+    with pytest.raises(ValueError, match="--attitude and --dynamics"):
+        study_geometry(RunOptions(dynamics="0.02,0.02,0.02", attitude_file="x.csv", duration_s=10.0))
