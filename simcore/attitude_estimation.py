@@ -68,19 +68,20 @@ def _on_board_map_name(ds):
 
 def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOMETER, seed=0, onboard_albedo=True,
              onboard_map=None, diode="BPW34FS", block=10, initial_error_deg=None, sigma_sun_deg=None,
-             converged_deg=CONVERGED_DEG):
+             converged_deg=CONVERGED_DEG, thermal_compensation=False):
     """Return a dict of time series (N-leading arrays) and a summary of the MEKF on run Dataset ``ds``.
 
     Keys: ``t_s`` (N,), ``q_est`` / ``q_true`` (N, 4) q_gcrs_from_body, ``error_body_deg`` (N, 3)
     body-frame attitude error (rotation vector, deg), ``error_deg`` (N,) its norm, ``nees`` (N,)
     attitude NEES (3 dof), ``sigma_deg`` (N, 3) the filter's 1-sigma per body axis, ``sunlit``
     and ``eclipse`` (N,) bool, ``sun_used`` / ``mag_used`` (N,) bool (accepted by the gate),
-    ``temperature_k`` (N,), and ``summary`` (JSON-able).
+    ``temperature_k`` (N,), and ``summary`` (JSON-able). ``thermal_compensation``: the gyro's bias
+    temperature effect is compensated on board down to :data:`simcore.gyro.THERMAL_COMPENSATION_RESIDUAL`.
     """
     from estimators.advanced import model_albedo_estimate
     from estimators.sun_vector import sun_albedo_sun_estimate
     from simcore.evaluate import measure
-    from simcore.gyro import GyroModel, board_temperature_k, filter_noise, gyro_spec
+    from simcore.gyro import GyroModel, board_temperature_k, filter_noise, gyro_spec, thermally_compensated
     from simcore.magnetometer import MagnetometerModel, field_gcrs_t, magnetometer_spec
     from simcore.maps import named_map
     from simcore.onboard import predict_albedo_effective
@@ -88,6 +89,8 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
     from simcore.sensor import DIODES
 
     gspec, mspec = gyro_spec(gyro), magnetometer_spec(magnetometer)
+    if thermal_compensation:
+        gspec = thermally_compensated(gspec)
     if diode not in DIODES:
         raise ValueError(f"unknown diode {diode!r}; known: {', '.join(DIODES)}")
     if not (isinstance(block, int) and block >= 1):
@@ -195,7 +198,7 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
     in_bounds = (ns >= NEES_BOUNDS_3DOF[0]) & (ns <= NEES_BOUNDS_3DOF[1])
     t_conv = time_to_converge_s(t[started], total[started], converged_deg)
     summary = {
-        "filter": "mekf", "gyro": gspec.name, "magnetometer": mspec.name, "seed": int(seed), "diode": diode,
+        "filter": "mekf", "gyro": gspec.name, "thermal_compensation": bool(thermal_compensation), "magnetometer": mspec.name, "seed": int(seed), "diode": diode,
         "configuration": ds.attrs.get("configuration"),
         "sun_vector": "model_albedo+gain (on-board albedo from the filter's attitude)" if onboard_albedo
         else "sun_albedo_sun (no on-board albedo)",
@@ -281,6 +284,8 @@ def add_mekf_options(p):
                    f"{DEFAULT_MAGNETOMETER}; table: simcore/data/magnetometers.toml)")
     p.add_argument("--no-onboard-albedo", action="store_true",
                    help="--filter mekf: Sun vector by Sun-Albedo-Sun instead of the on-board albedo prediction")
+    p.add_argument("--thermal-compensation", action="store_true",
+                   help="--filter mekf: the gyro bias's temperature effect compensated on board (to 22 %%)")
     p.add_argument("--initial-error", type=float, metavar="DEG",
                    help="--filter mekf: start from the true attitude rotated by DEG instead of TRIAD")
 
@@ -297,7 +302,8 @@ def cli_mekf(args):
         raise ValueError(f"--initial-error must be an angle between 0 and 180 deg, got {args.initial_error}")
     ds = open_run(args.run)
     res = run_mekf(ds, args.run, gyro=gyro, magnetometer=mag, seed=args.seed, diode=args.diode,
-                   onboard_albedo=not args.no_onboard_albedo, initial_error_deg=args.initial_error)
+                   onboard_albedo=not args.no_onboard_albedo, initial_error_deg=args.initial_error,
+                   thermal_compensation=args.thermal_compensation)
     s = res["summary"]
     if args.plots:
         s["plots"] = plot_mekf(res, args.plots, title=f"{s['configuration']}, {gyro}:")

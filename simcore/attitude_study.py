@@ -18,12 +18,17 @@ from simcore.reproduce import CONFIGS, SPANS, ensure_run, run_options
 GYROS = ("MPU-3300", "IMU160", "BMG160", "L3G4200D")   # the thesis' recommendation and the flown part
 
 
-def _task(path, gyro, seed, onboard, magnetometer):
+def default_page(folder, span, thermal_compensation=False):
+    """Return the default results-page folder of a study."""
+    return os.path.join(folder, f"attitude_{span}" + ("_compensated" if thermal_compensation else ""))
+
+
+def _task(path, gyro, seed, onboard, magnetometer, thermal_compensation=False):
     """One evaluation (runs in a Dask worker): the MEKF summary of one run file."""
     from simcore.attitude_estimation import run_mekf
     from simcore.run import open_run
     return run_mekf(open_run(path), path, gyro=gyro, magnetometer=magnetometer, seed=seed,
-                    onboard_albedo=onboard)["summary"]
+                    onboard_albedo=onboard, thermal_compensation=thermal_compensation)["summary"]
 
 
 def _run_tasks(tasks, *, scheduler=None, workers=2, log=print):
@@ -49,7 +54,8 @@ def _run_tasks(tasks, *, scheduler=None, workers=2, log=print):
 
 
 def attitude_study(folder="runs/thesis", *, span="orbits", configs=CONFIGS, gyros=GYROS, seeds=(0, 1, 2),
-                   magnetometer="HMC5883L", page_folder=None, render=True, scheduler=None, workers=2, log=print):
+                   magnetometer="HMC5883L", page_folder=None, render=True, scheduler=None, workers=2,
+                   thermal_compensation=False, log=print):
     """Evaluate every combination, write the results page; return the results dict."""
     from simcore.gyro import gyro_spec
     from simcore.magnetometer import magnetometer_spec
@@ -62,7 +68,7 @@ def attitude_study(folder="runs/thesis", *, span="orbits", configs=CONFIGS, gyro
         SatelliteConfig.load(c)
     if not seeds:
         raise ValueError("give at least one seed")
-    page_folder = page_folder or os.path.join(folder, f"attitude_{span}")
+    page_folder = page_folder or default_page(folder, span, thermal_compensation)
     os.makedirs(folder, exist_ok=True)
     os.makedirs(page_folder, exist_ok=True)
     paths = {}
@@ -75,13 +81,13 @@ def attitude_study(folder="runs/thesis", *, span="orbits", configs=CONFIGS, gyro
         paths[c] = opts.output
     if not paths:
         raise ValueError(f"no run files in {folder} for span {span!r}; run without --no-render")
-    tasks = [(paths[c], g, int(s), onboard, magnetometer) for c in paths for g in gyros for onboard in (True, False)
+    tasks = [(paths[c], g, int(s), onboard, magnetometer, thermal_compensation) for c in paths for g in gyros for onboard in (True, False)
              for s in seeds]
     log(f"attitude study: {len(tasks)} MEKF evaluations ({len(paths)} configurations x {len(gyros)} gyros x "
         f"2 Sun-vector modes x {len(seeds)} seeds) on Dask")
     summaries = _run_tasks(tasks, scheduler=scheduler, workers=workers, log=log)
     rows = []
-    for (path, g, s, onboard, _), summ in summaries.items():
+    for (path, g, s, onboard, _, _), summ in summaries.items():
         a = summ["attitude_error_deg"]
         rows.append({"config": summ["configuration"], "gyro": g, "seed": s, "onboard_albedo": onboard,
                      "sunlit_mean": a["sunlit"]["mean"], "sunlit_p95": a["sunlit"]["p95"],
@@ -91,7 +97,8 @@ def attitude_study(folder="runs/thesis", *, span="orbits", configs=CONFIGS, gyro
     rows.sort(key=lambda r: (list(paths).index(r["config"]), gyros.index(r["gyro"]), not r["onboard_albedo"],
                              r["seed"]))
     results = {"span": span, "start": SPANS[span][0], "duration_s": SPANS[span][1], "seeds": list(seeds),
-               "gyros": gyros, "magnetometer": magnetometer, "configs": list(paths), "rows": rows}
+               "gyros": gyros, "magnetometer": magnetometer, "configs": list(paths), "rows": rows,
+               "thermal_compensation": bool(thermal_compensation)}
     with open(os.path.join(page_folder, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
     _figures(results, page_folder, paths, log)
@@ -138,7 +145,8 @@ def _figures(results, page_folder, paths, log):
     from simcore.run import open_run
     cfg = "tilt20_fov70" if "tilt20_fov70" in paths else configs[0]
     for g in dict.fromkeys([gyros[0], "BMG160" if "BMG160" in gyros else gyros[-1], gyros[-1]]):
-        res = run_mekf(open_run(paths[cfg]), paths[cfg], gyro=g, magnetometer=results["magnetometer"], seed=0)
+        res = run_mekf(open_run(paths[cfg]), paths[cfg], gyro=g, magnetometer=results["magnetometer"], seed=0,
+                       thermal_compensation=results["thermal_compensation"])
         sub = os.path.join(page_folder, f"series_{cfg}_{g}")
         plot_mekf(res, sub, title=f"{cfg}, {g}:")
         log(f"  figures {sub}")
@@ -163,7 +171,9 @@ def write_page(results, page_folder):
         "(CERES 2018 all-sky map on board: not the rendering's map), or Sun-Albedo-Sun without a prediction. "
         f"Mean +- standard deviation over seeds {results['seeds']} (gyro/magnetometer error draws and noise), "
         "each seed one Dask task. Filter started by TRIAD at the first sunlit epoch; eclipse = not in full Sun "
-        "(magnetometer + gyro only).",
+        "(magnetometer + gyro only). Gyro bias temperature effect: "
+        + ("compensated on board to 22 % (simcore.gyro.THERMAL_COMPENSATION_RESIDUAL)."
+           if results.get("thermal_compensation") else "uncompensated (the data sheets' coefficients)."),
         "",
     ]
     for onboard in (True, False):
@@ -206,12 +216,14 @@ def add_parser(sub):
     p.add_argument("--span", choices=list(SPANS), default="orbits",
                    help="the run files of 'sunsim reproduce' to use or render (default %(default)s)")
     p.add_argument("--folder", default="runs/thesis", help="run files (shared with sunsim reproduce)")
-    p.add_argument("--page", help="results page folder (default FOLDER/attitude_SPAN)")
+    p.add_argument("--page", help="results page folder (default FOLDER/attitude_SPAN[_compensated])")
     p.add_argument("--configs", nargs="+", default=list(CONFIGS), metavar="CONFIG")
     p.add_argument("--gyros", nargs="+", default=list(GYROS), metavar="NAME")
     p.add_argument("--magnetometer", default="HMC5883L", metavar="NAME")
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], metavar="SEED")
     p.add_argument("--no-render", action="store_true", help="use only the run files already there")
+    p.add_argument("--thermal-compensation", action="store_true",
+                   help="gyro bias temperature effect compensated on board (to 22 %%)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
     p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default %(default)s)")
     p.add_argument("--json", action="store_true")
@@ -225,8 +237,9 @@ def cli_attitude_study(args):
     log = (lambda m: print(m, file=sys.stderr))
     res = attitude_study(args.folder, span=args.span, configs=args.configs, gyros=args.gyros, seeds=args.seeds,
                          magnetometer=args.magnetometer, page_folder=args.page, render=not args.no_render,
-                         scheduler=args.scheduler, workers=args.workers, log=log)
-    page = args.page or os.path.join(args.folder, f"attitude_{args.span}")
+                         scheduler=args.scheduler, workers=args.workers,
+                         thermal_compensation=args.thermal_compensation, log=log)
+    page = args.page or default_page(args.folder, args.span, args.thermal_compensation)
     if args.json:
         print(json.dumps({"page": page, "rows": len(res["rows"])}))
     else:

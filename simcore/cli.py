@@ -212,9 +212,10 @@ def cmd_estimate(args):
     import os
     if args.filter:
         return ESTIMATE_FILTERS[args.filter](args)
-    if args.gyro or args.magnetometer or args.no_onboard_albedo or args.initial_error is not None:
-        raise UserError("--gyro, --magnetometer, --no-onboard-albedo and --initial-error belong to an attitude "
-                        "filter; add --filter mekf")
+    if args.gyro or args.magnetometer or args.no_onboard_albedo or args.thermal_compensation \
+            or args.initial_error is not None:
+        raise UserError("--gyro, --magnetometer, --no-onboard-albedo, --thermal-compensation and --initial-error "
+                        "belong to an attitude filter; add --filter mekf")
     from simcore.evaluate import evaluate_run
     from simcore.run import open_run
     ds = open_run(args.run)

@@ -48,6 +48,13 @@ THERMAL_SUNLIT_K = 298.15
 THERMAL_ECLIPSE_K = 268.15
 THERMAL_TAU_S = 2100.0
 
+# On-board temperature compensation of the bias (the thesis' recommendation, sec. 3.1.2 and 5.1: a
+# polynomial in the gyro's own temperature reading, calibrated on ground) leaves a fraction of the
+# temperature effect. Niu et al. (2013), as cited in thesis sec. 2.5.1-2.5.2, cut the temperature-driven
+# scale-factor error from 1.1 % to 0.15 % (0.14) and the misalignment from 0.6 % to 0.13 % (0.22) with
+# third-order polynomials; the larger ratio, 0.22, is used for the bias temperature coefficient.
+THERMAL_COMPENSATION_RESIDUAL = 0.22
+
 
 @dataclass(frozen=True)
 class GyroSpec:
@@ -94,6 +101,16 @@ def load_gyros():
                 kw[k] = v
         out[name] = GyroSpec(**kw)
     return out
+
+
+def thermally_compensated(spec, residual=THERMAL_COMPENSATION_RESIDUAL):
+    """Return the GyroSpec seen after on-board temperature compensation: the bias temperature
+    coefficient scaled by ``residual`` (the uncompensated fraction; see THERMAL_COMPENSATION_RESIDUAL)."""
+    from dataclasses import replace
+    if not 0 <= residual <= 1:
+        raise ValueError(f"the compensation residual must be a fraction in [0, 1], got {residual}")
+    return replace(spec, name=f"{spec.name} (temperature-compensated)",
+                   bias_temp_coeff_rad_s_k=spec.bias_temp_coeff_rad_s_k * residual)
 
 
 def gyro_spec(name):

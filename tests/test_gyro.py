@@ -100,3 +100,15 @@ def test_board_temperature_cycle():
     np.testing.assert_allclose(temp, 268.15 + 30.0 * np.exp(-t / 2100.0), rtol=1e-12)
     # Largest gradient 30 K / 2100 s = 0.0143 K/s: the Compass-1 ADCS board's 0.014 degC/s (thesis sec. 2.2).
     assert abs(np.abs(np.diff(temp)).max() - 0.014) < 0.0005
+
+
+def test_thermal_compensation_leaves_the_stated_fraction():
+    from simcore.gyro import THERMAL_COMPENSATION_RESIDUAL, filter_noise, thermally_compensated
+    spec = gyro_spec("MPU-3300")
+    comp = thermally_compensated(spec)
+    assert comp.bias_temp_coeff_rad_s_k == pytest.approx(0.25 * DEG * THERMAL_COMPENSATION_RESIDUAL)
+    assert comp.noise_density_rad_s_rthz == spec.noise_density_rad_s_rthz
+    # The filter's bias random walk shrinks with it (thermal drift dominates the MPU-3300's).
+    assert filter_noise(comp)[1] < 0.5 * filter_noise(spec)[1]
+    with pytest.raises(ValueError, match="fraction"):
+        thermally_compensated(spec, 1.5)
