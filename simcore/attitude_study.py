@@ -4,7 +4,8 @@ on-board albedo prediction, over seeds on Dask, and a results page.
 ``sunsim attitude-study`` uses (or renders) the run files of ``sunsim reproduce`` (same folder,
 same file names: :func:`simcore.reproduce.run_options`), runs :func:`simcore.attitude_estimation.run_mekf`
 for every (configuration, gyro, on-board albedo yes/no, seed) as one Dask task (a local cluster by
-default), and writes ``README.md``, ``results.json`` and figures to the page folder. The seed
+default), and writes ``README.md``, ``results.json`` and figures to the page folder. Each finished
+evaluation is kept in ``<page>/evaluations/``: started again, the study skips those and resumes. The seed
 draws the gyro's and magnetometer's errors and all sensor noise; the spread over seeds is the
 spread of one satellite's hardware draw, not of the rendering.
 """
@@ -31,25 +32,42 @@ def _task(path, gyro, seed, onboard, magnetometer, thermal_compensation=False):
                     onboard_albedo=onboard, thermal_compensation=thermal_compensation)["summary"]
 
 
-def _run_tasks(tasks, *, scheduler=None, workers=2, log=print):
+def _task_file(cache, task):
+    path, gyro, seed, onboard, magnetometer, comp = task
+    name = (f"{os.path.splitext(os.path.basename(path))[0]}_{gyro}_{magnetometer}_seed{seed}"
+            f"_{'onboard' if onboard else 'blind'}{'_comp' if comp else ''}.json")
+    return os.path.join(cache, name)
+
+
+def _run_tasks(tasks, cache, *, scheduler=None, workers=2, log=print):
+    """Run the evaluations on Dask; each finished one is kept in ``cache`` (a study started again skips it)."""
     from dask.distributed import Client, LocalCluster, as_completed
-    if scheduler:
-        client, cluster = Client(scheduler), None
-    else:
-        cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=None)
-        client = Client(cluster)
+    os.makedirs(cache, exist_ok=True)
+    todo = [t for t in tasks if not os.path.exists(_task_file(cache, t))]
+    log(f"  {len(tasks) - len(todo)} of {len(tasks)} evaluations already done")
+    if todo:
+        if scheduler:
+            client, cluster = Client(scheduler), None
+        else:
+            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                                   dashboard_address=None)
+            client = Client(cluster)
+        try:
+            futures = {client.submit(_task, *t, pure=False): t for t in todo}
+            for i, fut in enumerate(as_completed(futures), start=1):
+                summary = fut.result()
+                with open(_task_file(cache, futures[fut]), "w") as f:
+                    json.dump(summary, f)
+                if i % 10 == 0 or i == len(todo):
+                    log(f"  {i}/{len(todo)} evaluations done")
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
     out = {}
-    try:
-        futures = {client.submit(_task, *t, pure=False): t for t in tasks}
-        for i, fut in enumerate(as_completed(futures), start=1):
-            key = futures[fut]
-            out[key] = fut.result()
-            if i % 10 == 0 or i == len(tasks):
-                log(f"  {i}/{len(tasks)} evaluations done")
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    for t in tasks:
+        with open(_task_file(cache, t)) as f:
+            out[t] = json.load(f)
     return out
 
 
@@ -81,11 +99,13 @@ def attitude_study(folder="runs/thesis", *, span="orbits", configs=CONFIGS, gyro
         paths[c] = opts.output
     if not paths:
         raise ValueError(f"no run files in {folder} for span {span!r}; run without --no-render")
-    tasks = [(paths[c], g, int(s), onboard, magnetometer, thermal_compensation) for c in paths for g in gyros for onboard in (True, False)
-             for s in seeds]
+    # Seed-major order: stopped early, a study has whole seeds done (and resumes where it stopped).
+    tasks = [(paths[c], g, int(s), onboard, magnetometer, thermal_compensation) for s in seeds for c in paths
+             for g in gyros for onboard in (True, False)]
     log(f"attitude study: {len(tasks)} MEKF evaluations ({len(paths)} configurations x {len(gyros)} gyros x "
         f"2 Sun-vector modes x {len(seeds)} seeds) on Dask")
-    summaries = _run_tasks(tasks, scheduler=scheduler, workers=workers, log=log)
+    summaries = _run_tasks(tasks, os.path.join(page_folder, "evaluations"), scheduler=scheduler, workers=workers,
+                           log=log)
     rows = []
     for (path, g, s, onboard, _, _), summ in summaries.items():
         a = summ["attitude_error_deg"]
