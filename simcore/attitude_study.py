@@ -49,8 +49,9 @@ def _run_tasks(tasks, cache, *, scheduler=None, workers=2, log=print):
         if scheduler:
             client, cluster = Client(scheduler), None
         else:
+            # ':0': the scheduler's HTTP server on a free port, so two studies (or a sweep) can run at once.
             cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+                                   dashboard_address=":0")
             client = Client(cluster)
         try:
             futures = {client.submit(_task, *t, pure=False): t for t in todo}
