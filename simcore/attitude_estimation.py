@@ -214,7 +214,7 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
         "nees_in_bounds": round(float(np.mean(in_bounds[started])), 4),
         "nees_mean": round(float(np.nanmean(ns[started])), 3),
         "nees_bounds_3dof_95": list(NEES_BOUNDS_3DOF),
-        "time_to_converge_s": None if not np.isfinite(t_conv) else float(t_conv - t[k0]),
+        "time_to_converge_s": None if not np.isfinite(t_conv) else round(float(t_conv - t[k0]), 3),
         "converged_below_deg": converged_deg,
         "sun_updates": int(sun_used.sum()), "sun_rejected": int(np.sum(sunlit & s_ok & valid & started) - sun_used.sum()),
         "mag_updates": int(mag_used.sum()), "mag_rejected": int(started.sum() - 1 - mag_used.sum()),
