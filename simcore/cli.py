@@ -89,6 +89,9 @@ def _add_render_options(p):
                    help="satellite configuration: a shipped name (tilt0_fov90, tilt{20,25,30}_fov{70,75}) "
                         "or a .toml file (scenes/FORMAT.md); default %(default)s")
     p.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz (overrides the tumble)")
+    p.add_argument("--dynamics", metavar="INERTIA",
+                   help="torque-free Euler dynamics instead of the constant tumble, starting at --spin-rate about "
+                        "the body diagonal; INERTIA in kg m^2: 'IXX,IYY,IZZ' or 'IXX,IYY,IZZ,IXY,IXZ,IYZ'")
     p.add_argument("--accuracy", nargs=2, type=float, metavar=("DIRECT", "ALBEDO"), default=(0.002, 0.01),
                    help="target relative standard errors of direct and albedo irradiance (default 0.002 0.01)")
     p.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"),
@@ -123,7 +126,7 @@ def run_options(args):
     samples = args.samples
     return RunOptions(
         config=args.config, tle=args.tle, satellite=args.satellite, start=args.start, duration_s=args.duration,
-        step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude,
+        step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude, dynamics=args.dynamics,
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
         dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
@@ -235,15 +238,71 @@ def cmd_validate(args):
     return 0 if report["pass"] else 1
 
 
-def _sunline_filter(args, ds, errors, faults):
-    """Run a sun-line filter (simcore.pipeline.evaluate_sunline) over a run file: its JSON summary."""
+
+
+def _mekf_filter(args):
+    """``sunsim estimate RUN.nc --filter mekf``: print the attitude-error summary (or JSON); exit status 0."""
+    from simcore.pipeline.evaluate_attitude import DEFAULT_GYRO, DEFAULT_MAGNETOMETER, run_mekf
+    from simcore.pipeline.run import open_run
+    from simcore.plots import plot_mekf
+    from simcore.sensor.gyro import gyro_spec
+    from simcore.sensor.magnetometer import magnetometer_spec
+    gyro = gyro_spec(args.gyro or DEFAULT_GYRO).name                 # name checks before any work
+    mag = magnetometer_spec(args.magnetometer or DEFAULT_MAGNETOMETER).name
+    if args.initial_error is not None and not 0 <= args.initial_error <= 180:
+        raise InvalidInputError(f"--initial-error must be an angle between 0 and 180 deg, got {args.initial_error}")
+    ds = open_run(args.run)
+    res = run_mekf(ds, args.run, gyro=gyro, magnetometer=mag, seed=args.seed, diode=args.diode,
+                   onboard_albedo=not args.no_onboard_albedo, initial_error_deg=args.initial_error,
+                   thermal_compensation=args.thermal_compensation)
+    s = res["summary"]
+    if args.plots:
+        s["plots"] = plot_mekf(res, _output_folder(args.plots, "--plots folder"), title=f"{s['configuration']}, {gyro}:")
+    if args.json:
+        print(json.dumps({"run": args.run, **s}))
+        return 0
+    a = s["attitude_error_deg"]
+    print(f"{args.run}: {s['configuration']}, MEKF with {gyro} + {mag} + Sun sensor ({s['sun_vector']}), "
+          f"seed {s['seed']}, start {s['start']} at {s['start_s']:g} s")
+    print(f"  attitude error [deg]   {'n':>6} {'mean':>7} {'p95':>7} {'max':>7}")
+    for part in ("sunlit", "eclipse", "all"):
+        r = a[part]
+        if r["n"]:
+            print(f"  {part:<22} {r['n']:>6} {r['mean']:>7.3f} {r['p95']:>7.3f} {r['max']:>7.3f}")
+        else:
+            print(f"  {part:<22} {0:>6}       -       -       -")
+    print(f"  NEES in 95 % bounds: {s['nees_in_bounds']:.1%} (mean {s['nees_mean']}, 3 dof); "
+          f"converged (< {s['converged_below_deg']:g} deg for good) after {s['time_to_converge_s']} s")
+    print(f"  Sun updates {s['sun_updates']} (rejected {s['sun_rejected']}), magnetometer updates "
+          f"{s['mag_updates']} (rejected {s['mag_rejected']}); board {s['temperature_c'][0]}..{s['temperature_c'][1]} degC")
+    if args.plots:
+        print(f"  plots: {', '.join(s['plots'])}")
+    return 0
+
+
+def _sunline_filter(args):
+    """``sunsim estimate RUN.nc --filter sunline-ekf|sunline-ukf``: a sun-line filter
+    (simcore.pipeline.evaluate_sunline) over a run file; print its summary (or JSON)."""
     from simcore.pipeline.evaluate_sunline import filter_run
-    return filter_run(ds, args.filter, diode=args.diode, errors=errors, faults=faults, noise=args.noise,
-                      seed=args.seed, gyro_sigma_deg_s=args.gyro)
+    from simcore.pipeline.run import open_run
+    from simcore.sensor.errors import check_faults, parse_faults, parse_sensor_errors
+    errors, faults = parse_sensor_errors(args.sensor_errors), parse_faults(args.faults)
+    if args.gyro_noise is not None and not args.gyro_noise > 0:
+        raise UserError(f"--gyro-noise must be the gyro's noise standard deviation, > 0 deg/s; got {args.gyro_noise}")
+    ds = open_run(args.run)
+    check_faults(faults, ds["t_s"].values, ds.sizes["diode"])
+    return _print_filter_summary(args, filter_run(ds, args.filter, diode=args.diode, errors=errors, faults=faults,
+                                                  noise=args.noise, seed=args.seed,
+                                                  gyro_sigma_deg_s=args.gyro_noise))
 
 
-# --filter NAME -> function(args, ds, sensor_errors, faults) returning a JSON-able summary
-ESTIMATE_FILTERS = {"sunline-ekf": _sunline_filter, "sunline-ukf": _sunline_filter}
+# sunsim estimate --filter NAME: one table, one entry per filter
+ESTIMATE_FILTERS = {"sunline-ekf": _sunline_filter, "sunline-ukf": _sunline_filter, "mekf": _mekf_filter}
+# the options that belong to each kind of filter
+_FILTER_OPTIONS = {
+    "sunline": ("--faults", "--sensor-errors", "--gyro-noise"),
+    "mekf": ("--gyro", "--magnetometer", "--no-onboard-albedo", "--thermal-compensation", "--initial-error"),
+}
 
 
 def _print_filter_summary(args, out):
@@ -266,21 +325,42 @@ def _print_filter_summary(args, out):
     return 0
 
 
-def _filter_inputs(args):
-    """Return (sensor errors, faults) of ``estimate``'s filter options, or raise the user's mistake."""
-    from simcore.sensor.errors import parse_faults, parse_sensor_errors
-    errors, faults = parse_sensor_errors(args.sensor_errors), parse_faults(args.faults)
-    if (args.faults or args.sensor_errors or args.gyro is not None) and not args.filter:
-        raise UserError("--faults, --sensor-errors and --gyro go with --filter (its summary lists WLS and "
-                        "Sun-Albedo-Sun on the same readings); add --filter sunline-ekf")
-    if args.gyro is not None and not args.gyro > 0:
-        raise UserError(f"--gyro must be the gyro's noise standard deviation, > 0 deg/s; got {args.gyro}")
-    return errors, faults
+def _check_filter_options(args):
+    """Raise the user's mistake when a filter's options come without that filter."""
+    given = {"--faults": args.faults, "--sensor-errors": args.sensor_errors, "--gyro-noise": args.gyro_noise,
+             "--gyro": args.gyro, "--magnetometer": args.magnetometer, "--no-onboard-albedo": args.no_onboard_albedo,
+             "--thermal-compensation": args.thermal_compensation, "--initial-error": args.initial_error}
+    kind = None if not args.filter else ("mekf" if args.filter == "mekf" else "sunline")
+    for k, opts in _FILTER_OPTIONS.items():
+        used = [o for o in opts if given[o] not in (None, False)]
+        if used and k != kind:
+            want = "mekf" if k == "mekf" else "sunline-ekf"
+            also = "" if k == "mekf" else " (or sunline-ukf)"
+            raise UserError(f"{', '.join(used)} only go with --filter {want}{also}: add --filter {want}")
+
+
+def _add_mekf_options(p):
+    """Add the MEKF's options to the ``sunsim estimate`` parser."""
+    from simcore.pipeline.evaluate_attitude import DEFAULT_GYRO, DEFAULT_MAGNETOMETER
+    p.add_argument("--gyro", metavar="NAME", help=f"gyro for --filter mekf (default {DEFAULT_GYRO}, the flown one; "
+                   "table: simcore/data/gyros.toml)")
+    p.add_argument("--magnetometer", metavar="NAME", help=f"magnetometer for --filter mekf (default "
+                   f"{DEFAULT_MAGNETOMETER}; table: simcore/data/magnetometers.toml)")
+    p.add_argument("--no-onboard-albedo", action="store_true",
+                   help="--filter mekf: Sun vector by Sun-Albedo-Sun instead of the on-board albedo prediction")
+    p.add_argument("--thermal-compensation", action="store_true",
+                   help="--filter mekf: the gyro bias's temperature effect compensated on board (to 22 %%)")
+    p.add_argument("--initial-error", type=float, metavar="DEG",
+                   help="--filter mekf: start from the true attitude rotated by DEG instead of TRIAD")
+
+
 
 
 def cmd_estimate(args):
     """Sensor chain + the thesis' estimators on a run: error table (and plots)."""
-    errors, faults = _filter_inputs(args)
+    _check_filter_options(args)
+    if args.filter:
+        return ESTIMATE_FILTERS[args.filter](args)
     from simcore.pipeline.evaluate import evaluate_run
     from simcore.pipeline.run import open_run
     from simcore.sensor.chain import DIODES
@@ -295,10 +375,6 @@ def cmd_estimate(args):
         print(json.dumps({"run": args.run, "table": [], "verdict": "no sunlit data"}) if args.json
               else f"{args.run}: {ds.attrs.get('configuration')}: {msg}")
         return 1
-    if args.filter:
-        from simcore.sensor.errors import check_faults
-        check_faults(faults, ds["t_s"].values, ds.sizes["diode"])
-        return _print_filter_summary(args, ESTIMATE_FILTERS[args.filter](args, ds, errors, faults))
     if args.plots is not None:
         from simcore.studies.run_figures import default_plot_folder, write_error_plots
         args.plots = _output_folder(args.plots or default_plot_folder(args.run), "--plots folder")
@@ -446,11 +522,15 @@ def build_parser():
                    help="write error plots (PNG, one y range for all estimators) to DIR (default: RUN_plots/ "
                         "beside the run file)")
     e.add_argument("--filter", choices=sorted(ESTIMATE_FILTERS),
-                   help="run a filter instead of the thesis' estimators (WLS and Sun-Albedo-Sun listed beside it)")
+                   help="run a filter instead of the thesis' estimators: sunline-ekf|sunline-ukf (Sun vector and "
+                        "body rate; WLS and Sun-Albedo-Sun listed beside it) or mekf (attitude from gyro, "
+                        "magnetometer and Sun sensor; sensor noise on)")
     e.add_argument("--faults", metavar="SPEC", help=_sensor_errors_help("FAULTS_HELP"))
     e.add_argument("--sensor-errors", metavar="SPEC", help=_sensor_errors_help("SENSOR_ERRORS_HELP"))
-    e.add_argument("--gyro", type=float, metavar="DEG_S",
-                   help="give the filter a gyro: the run's true body rate plus white noise of this standard deviation")
+    e.add_argument("--gyro-noise", type=float, metavar="DEG_S",
+                   help="give a sun-line filter a gyro: the run's true body rate plus white noise of this standard "
+                        "deviation")
+    _add_mekf_options(e)
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_estimate)
 
@@ -490,6 +570,9 @@ def build_parser():
     _add_aperture_sweep_options(ap)
     ap.add_argument("--json", action="store_true")
     ap.set_defaults(func=cmd_aperture_sweep)
+
+    from simcore.studies.attitude import add_parser as _attitude_study_parser
+    _attitude_study_parser(sub)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)

@@ -638,7 +638,7 @@ def shared_error_ylim(err_deg, sunlit=None):
 
 
 __all__ = ["plot_albedo_cells", "plot_angular_response", "plot_coverage_map", "plot_diode_irradiance",
-           "plot_estimator_error", "save_figure", "shared_error_ylim"]
+           "plot_estimator_error", "plot_mekf", "save_figure", "shared_error_ylim"]
 
 
 # ----------------------------------------------------------------------------- aperture studies
@@ -757,3 +757,40 @@ def plot_reflectance_series(series, path=None):
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+# ----------------------------------------------------------------------------- attitude filter
+
+def plot_mekf(res, folder, title=""):
+    """Write ``attitude_error.png`` (the MEKF's attitude error per body axis with its own 3 sigma, and the
+    total, eclipse shaded) and ``nees.png`` (NEES with its 95 % chi-square bounds) into ``folder``;
+    return their paths. ``res``: :func:`simcore.pipeline.evaluate_attitude.run_mekf`'s result."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    t = res["t_s"]
+    fig = _figure(10, 9)
+    axes = fig.subplots(4, 1, sharex=True)
+    for i, ax in enumerate(axes[:3]):
+        ax.plot(t, res["error_body_deg"][:, i], lw=0.6, label="error")
+        ax.plot(t, 3 * res["sigma_deg"][:, i], "k--", lw=0.6, label="+-3 sigma (filter)")
+        ax.plot(t, -3 * res["sigma_deg"][:, i], "k--", lw=0.6)
+        ax.set_ylabel(f"body {'xyz'[i]} [deg]")
+        ax.set_ylim(-5, 5)
+    axes[3].semilogy(t, res["error_deg"], lw=0.6)
+    axes[3].set_ylabel("total [deg]")
+    axes[3].set_xlabel("time since start [s]")
+    for ax in axes:
+        ax.fill_between(t, 0, 1, where=res["eclipse"], color="0.85", transform=ax.get_xaxis_transform(), lw=0)
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[0].set_title(f"{title} attitude error (grey: eclipse)")
+    paths = save_figure(fig, folder / "attitude_error.png")
+    fig = _figure(10, 3.5)
+    ax = fig.subplots()
+    ax.semilogy(t, res["nees"], lw=0.5)
+    for b in res["summary"]["nees_bounds_3dof_95"]:
+        ax.axhline(b, color="k", ls="--", lw=0.8)
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel("NEES (3 dof)")
+    ax.set_title(f"{title} NEES, in 95 % bounds {res['summary']['nees_in_bounds']:.1%} of the time")
+    paths += save_figure(fig, folder / "nees.png")
+    return [str(p) for p in paths]

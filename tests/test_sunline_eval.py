@@ -62,7 +62,7 @@ def test_stuck_max_is_excluded_within_10_s_and_the_error_recovers(ds, kind):
 
 def test_cli_filter_json(run_path, capsys):
     rc = main(["estimate", run_path, "--filter", "sunline-ukf", "--faults", f"STUCK_MAX@{STUCK}:{ONSET_S:g}",
-               "--sensor-errors", "white=0.005,gm=0.005:300,walk=0.001:0.01,seed=1", "--gyro", "0.01", "--json"])
+               "--sensor-errors", "white=0.005,gm=0.005:300,walk=0.001:0.01,seed=1", "--gyro-noise", "0.01", "--json"])
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
     assert out["filter"] == "sunline-ukf"
@@ -87,7 +87,7 @@ def test_cli_filter_text(run_path, capsys):
     (["--faults", "OFF@2:900"], "onset 900 s lies outside the run (0 .. 599 s since its start)"),
     (["--sensor-errors", "white=-0.01"], "white must be >= 0"),
     (["--sensor-errors", "walk=0.001:-0.01"], "the walk bound must be >= 0, got -0.01"),
-    (["--gyro", "-0.1"], "--gyro must be the gyro's noise standard deviation, > 0 deg/s"),
+    (["--gyro-noise", "-0.1"], "--gyro-noise must be the gyro's noise standard deviation, > 0 deg/s"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(run_path, capsys, extra, message):
     rc = main(["estimate", run_path, "--filter", "sunline-ekf", *extra])

@@ -58,6 +58,7 @@ class RunOptions:
     spin_rate_deg_s: float = _attitude.DEFAULT_TUMBLE_RATE_DEG_S
     spin_axis: tuple = (1.0, 1.0, 1.0)
     attitude_file: str = None          # CSV t_s,qw,qx,qy,qz (overrides the tumble)
+    dynamics: str = None               # inertia 'IXX,IYY,IZZ[,IXY,IXZ,IYZ]' kg m^2: torque-free Euler dynamics
     rel_se_direct: float = 0.002       # target relative standard errors (None: fixed sample counts)
     rel_se_albedo: float = 0.01
     direct_samples: int = 1024
@@ -112,6 +113,8 @@ def study_geometry(opts):
         raise InvalidInputError(f"--duration must be between 0 and 400 days in seconds, got {duration}")
     epochs = Epochs.range(opts.start, duration, opts.step_s)
     t_s = epochs.seconds_since(epochs[0])
+    if opts.attitude_file and opts.dynamics:
+        raise ValueError("--attitude and --dynamics both set the attitude; give one of them")
     if opts.attitude_file:
         history = _attitude.Attitude.from_file(opts.attitude_file)
         span = history.t_s[-1] - history.t_s[0]
@@ -119,6 +122,11 @@ def study_geometry(opts):
             raise InvalidInputError(f"the attitude file {opts.attitude_file} spans {span:g} s but the run needs "
                                     f"{t_s[-1]:g} s after its start; supply a longer history or a shorter --duration")
         attitude = history.resample(history.t_s[0] + t_s)
+    elif opts.dynamics:
+        from simcore.environment.dynamics import parse_inertia, propagate_torque_free
+        axis = np.asarray(opts.spin_axis, dtype=float)
+        w0 = np.radians(opts.spin_rate_deg_s) * axis / np.linalg.norm(axis)
+        attitude, _ = propagate_torque_free(t_s, parse_inertia(opts.dynamics), w0)
     else:
         attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
     return orbit, attitude, compute_geometry(orbit, epochs, attitude)

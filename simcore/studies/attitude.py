@@ -1,0 +1,269 @@
+"""The thesis' further work answered: attitude error per configuration x gyro, with and without the
+on-board albedo prediction, over seeds on Dask, and a results page.
+
+``sunsim attitude-study`` uses (or renders) the run files of ``sunsim reproduce`` (same folder,
+same file names: :func:`simcore.studies.reproduce.run_options`), runs :func:`simcore.pipeline.evaluate_attitude.run_mekf`
+for every (configuration, gyro, on-board albedo yes/no, seed) as one Dask task (a local cluster by
+default), and writes ``README.md``, ``results.json`` and figures to the page folder. Each finished
+evaluation is kept in ``<page>/evaluations/``: started again, the study skips those and resumes. The seed
+draws the gyro's and magnetometer's errors and all sensor noise; the spread over seeds is the
+spread of one satellite's hardware draw, not of the rendering.
+"""
+import json
+import os
+
+import numpy as np
+
+from simcore.studies.reproduce import CONFIGS, SPANS, ensure_run, run_options
+
+GYROS = ("MPU-3300", "IMU160", "BMG160", "L3G4200D")   # the thesis' recommendation and the flown part
+
+
+def default_page(folder, span, thermal_compensation=False):
+    """Return the default results-page folder of a study."""
+    return os.path.join(folder, f"attitude_{span}" + ("_compensated" if thermal_compensation else ""))
+
+
+def _task(path, gyro, seed, onboard, magnetometer, thermal_compensation=False):
+    """One evaluation (runs in a Dask worker): the MEKF summary of one run file."""
+    from simcore.pipeline.evaluate_attitude import run_mekf
+    from simcore.pipeline.run import open_run
+    return run_mekf(open_run(path), path, gyro=gyro, magnetometer=magnetometer, seed=seed,
+                    onboard_albedo=onboard, thermal_compensation=thermal_compensation)["summary"]
+
+
+def _task_file(cache, task):
+    path, gyro, seed, onboard, magnetometer, comp = task
+    name = (f"{os.path.splitext(os.path.basename(path))[0]}_{gyro}_{magnetometer}_seed{seed}"
+            f"_{'onboard' if onboard else 'blind'}{'_comp' if comp else ''}.json")
+    return os.path.join(cache, name)
+
+
+def _run_tasks(tasks, cache, *, scheduler=None, workers=2, log=print):
+    """Run the evaluations on Dask; each finished one is kept in ``cache`` (a study started again skips it)."""
+    from dask.distributed import Client, LocalCluster, as_completed
+    os.makedirs(cache, exist_ok=True)
+    todo = [t for t in tasks if not os.path.exists(_task_file(cache, t))]
+    log(f"  {len(tasks) - len(todo)} of {len(tasks)} evaluations already done")
+    if todo:
+        if scheduler:
+            client, cluster = Client(scheduler), None
+        else:
+            # ':0': the scheduler's HTTP server on a free port, so two studies (or a sweep) can run at once.
+            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                                   dashboard_address=":0")
+            client = Client(cluster)
+        try:
+            futures = {client.submit(_task, *t, pure=False): t for t in todo}
+            for i, fut in enumerate(as_completed(futures), start=1):
+                summary = fut.result()
+                with open(_task_file(cache, futures[fut]), "w") as f:
+                    json.dump(summary, f)
+                if i % 10 == 0 or i == len(todo):
+                    log(f"  {i}/{len(todo)} evaluations done")
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    out = {}
+    for t in tasks:
+        with open(_task_file(cache, t)) as f:
+            out[t] = json.load(f)
+    return out
+
+
+def attitude_study(folder="runs/thesis", *, span="orbits", configs=CONFIGS, gyros=GYROS, seeds=(0, 1, 2),
+                   magnetometer="HMC5883L", page_folder=None, render=True, scheduler=None, workers=2,
+                   thermal_compensation=False, log=print):
+    """Evaluate every combination, write the results page; return the results dict."""
+    from simcore.sensor.gyro import gyro_spec
+    from simcore.sensor.magnetometer import magnetometer_spec
+    from scenes.config import SatelliteConfig
+    if span not in SPANS:
+        raise ValueError(f"unknown span {span!r}; choose one of {', '.join(SPANS)}")
+    gyros = [gyro_spec(g).name for g in gyros]
+    magnetometer = magnetometer_spec(magnetometer).name
+    for c in configs:
+        SatelliteConfig.load(c)
+    if not seeds:
+        raise ValueError("give at least one seed")
+    page_folder = page_folder or default_page(folder, span, thermal_compensation)
+    os.makedirs(folder, exist_ok=True)
+    os.makedirs(page_folder, exist_ok=True)
+    paths = {}
+    for c in configs:
+        opts = run_options(c, folder, span=span)
+        if not os.path.exists(opts.output) and not render:
+            log(f"skipping {c}: no run file {opts.output} (render it, or drop --no-render)")
+            continue
+        ensure_run(opts, log=log)
+        paths[c] = opts.output
+    if not paths:
+        raise ValueError(f"no run files in {folder} for span {span!r}; run without --no-render")
+    # Seed-major order: stopped early, a study has whole seeds done (and resumes where it stopped).
+    tasks = [(paths[c], g, int(s), onboard, magnetometer, thermal_compensation) for s in seeds for c in paths
+             for g in gyros for onboard in (True, False)]
+    log(f"attitude study: {len(tasks)} MEKF evaluations ({len(paths)} configurations x {len(gyros)} gyros x "
+        f"2 Sun-vector modes x {len(seeds)} seeds) on Dask")
+    summaries = _run_tasks(tasks, os.path.join(page_folder, "evaluations"), scheduler=scheduler, workers=workers,
+                           log=log)
+    rows = []
+    for (path, g, s, onboard, _, _), summ in summaries.items():
+        a = summ["attitude_error_deg"]
+        rows.append({"config": summ["configuration"], "gyro": g, "seed": s, "onboard_albedo": onboard,
+                     "sunlit_mean": a["sunlit"]["mean"], "sunlit_p95": a["sunlit"]["p95"],
+                     "eclipse_mean": a["eclipse"]["mean"], "eclipse_p95": a["eclipse"]["p95"],
+                     "eclipse_max": a["eclipse"]["max"], "nees_in_bounds": summ["nees_in_bounds"],
+                     "time_to_converge_s": summ["time_to_converge_s"]})
+    rows.sort(key=lambda r: (list(paths).index(r["config"]), gyros.index(r["gyro"]), not r["onboard_albedo"],
+                             r["seed"]))
+    results = {"span": span, "start": SPANS[span][0], "duration_s": SPANS[span][1], "seeds": list(seeds),
+               "gyros": gyros, "magnetometer": magnetometer, "configs": list(paths), "rows": rows,
+               "thermal_compensation": bool(thermal_compensation)}
+    with open(os.path.join(page_folder, "results.json"), "w") as f:
+        json.dump(results, f, indent=1)
+    _figures(results, page_folder, paths, log)
+    write_page(results, page_folder)
+    return results
+
+
+def _agg(rows, key):
+    v = np.array([r[key] for r in rows if r[key] is not None], dtype=float)
+    return (float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else 0.0) if v.size else (float("nan"), 0.0)
+
+
+def _select(rows, **kw):
+    return [r for r in rows if all(r[k] == v for k, v in kw.items())]
+
+
+def _figures(results, page_folder, paths, log):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rows, gyros, configs = results["rows"], results["gyros"], results["configs"]
+    for key, label in (("sunlit_p95", "sunlit 95th percentile"), ("eclipse_p95", "eclipse 95th percentile")):
+        if not any(r[key] is not None and r[key] > 0 for r in rows):
+            log(f"  no {label} values (no such epochs in this span): no figure {key}.png")
+            continue
+        fig, axes = plt.subplots(1, 2, figsize=(12, 4), sharey=True)
+        for ax, onboard in zip(axes, (True, False)):
+            x = np.arange(len(configs))
+            w = 0.8 / len(gyros)
+            for i, g in enumerate(gyros):
+                m = [_agg(_select(rows, config=c, gyro=g, onboard_albedo=onboard), key) for c in configs]
+                ax.bar(x + (i - (len(gyros) - 1) / 2) * w, [a for a, _ in m], w, yerr=[s for _, s in m],
+                       label=g, capsize=2)
+            ax.set_xticks(x, configs, rotation=30, ha="right")
+            ax.set_title(("with" if onboard else "without") + " on-board albedo prediction")
+            ax.set_yscale("log")
+        axes[0].set_ylabel(f"attitude error, {label} [deg]")
+        axes[0].legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(os.path.join(page_folder, f"{key}.png"), dpi=110)
+        plt.close(fig)
+    # One time series: the best-ranked FOV-70 layout, flown gyro vs recommended, seed 0, on-board albedo.
+    from simcore.pipeline.evaluate_attitude import run_mekf
+    from simcore.plots import plot_mekf
+    from simcore.pipeline.run import open_run
+    cfg = "tilt20_fov70" if "tilt20_fov70" in paths else configs[0]
+    for g in dict.fromkeys([gyros[0], "BMG160" if "BMG160" in gyros else gyros[-1], gyros[-1]]):
+        res = run_mekf(open_run(paths[cfg]), paths[cfg], gyro=g, magnetometer=results["magnetometer"], seed=0,
+                       thermal_compensation=results["thermal_compensation"])
+        sub = os.path.join(page_folder, f"series_{cfg}_{g}")
+        plot_mekf(res, sub, title=f"{cfg}, {g}:")
+        log(f"  figures {sub}")
+
+
+def _cell(rows, key):
+    m, s = _agg(rows, key)
+    return "-" if not np.isfinite(m) else (f"{m:.2f} +- {s:.2f}" if s > 0 else f"{m:.2f}")
+
+
+def write_page(results, page_folder):
+    """Write README.md of the attitude study from its results dict."""
+    rows, gyros, configs = results["rows"], results["gyros"], results["configs"]
+    start, dur = results["start"], results["duration_s"]
+    lines = [
+        "# Attitude error per configuration and gyro (sunsim attitude-study)",
+        "",
+        f"Rendered irradiance ({results['span']}: {dur:g} s from {start}, 1 s steps, ESTCube-1, 1.9 deg/s tumble, "
+        "TOMS 2005), sensor chain with shot and Johnson noise, the gyro of each column, an "
+        f"{results['magnetometer']} magnetometer on the IGRF field, an MEKF (attitude + gyro bias). Sun vector: "
+        "model-albedo estimator with the albedo predicted on board from the filter's own attitude "
+        "(CERES 2018 all-sky map on board: not the rendering's map), or Sun-Albedo-Sun without a prediction. "
+        f"Mean +- standard deviation over seeds {results['seeds']} (gyro/magnetometer error draws and noise), "
+        "each seed one Dask task. Filter started by TRIAD at the first sunlit epoch; eclipse = not in full Sun "
+        "(magnetometer + gyro only). Gyro bias temperature effect: "
+        + ("compensated on board to 22 % (simcore.sensor.gyro.THERMAL_COMPENSATION_RESIDUAL)."
+           if results.get("thermal_compensation") else "uncompensated (the data sheets' coefficients)."),
+        "",
+    ]
+    for onboard in (True, False):
+        lines += [f"## {'With' if onboard else 'Without'} the on-board albedo prediction", "",
+                  "Sunlit mean / 95th percentile, eclipse 95th percentile of the attitude error [deg].", "",
+                  "| configuration | " + " | ".join(gyros) + " |", "|---" * (len(gyros) + 1) + "|"]
+        for c in configs:
+            cells = []
+            for g in gyros:
+                sel = _select(rows, config=c, gyro=g, onboard_albedo=onboard)
+                cells.append(f"{_cell(sel, 'sunlit_mean')} / {_cell(sel, 'sunlit_p95')} / {_cell(sel, 'eclipse_p95')}")
+            lines.append(f"| {c} | " + " | ".join(cells) + " |")
+        lines.append("")
+    lines += ["## Filter consistency", "",
+              "Share of epochs with the attitude NEES inside the two-sided 95 % chi-square bounds (3 dof), "
+              "with the on-board albedo prediction:", "",
+              "| configuration | " + " | ".join(gyros) + " |", "|---" * (len(gyros) + 1) + "|"]
+    for c in configs:
+        lines.append(f"| {c} | " + " | ".join(_cell(_select(rows, config=c, gyro=g, onboard_albedo=True),
+                                                      "nees_in_bounds") for g in gyros) + " |")
+    lines += ["", "## Figures", ""]
+    for key in ("sunlit_p95", "eclipse_p95"):
+        if os.path.exists(os.path.join(page_folder, f"{key}.png")):
+            lines += [f"![{key}]({key}.png)", ""]
+    for d in sorted(os.listdir(page_folder)):
+        if d.startswith("series_") and os.path.isdir(os.path.join(page_folder, d)):
+            lines += [f"![{d}]({d}/attitude_error.png)", ""]
+    discussion = os.path.join(page_folder, "discussion.md")   # hand-written, kept across regenerations
+    if os.path.exists(discussion):
+        with open(discussion) as f:
+            lines += ["", f.read()]
+    with open(os.path.join(page_folder, "README.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def add_parser(sub):
+    """Add ``sunsim attitude-study`` to the CLI's subparsers; its function is :func:`cli_attitude_study`."""
+    p = sub.add_parser("attitude-study", help="attitude error per configuration x gyro (MEKF on rendered runs, "
+                                              "seeds on Dask), with a results page")
+    p.add_argument("--span", choices=list(SPANS), default="orbits",
+                   help="the run files of 'sunsim reproduce' to use or render (default %(default)s)")
+    p.add_argument("--folder", default="runs/thesis", help="run files (shared with sunsim reproduce)")
+    p.add_argument("--page", help="results page folder (default FOLDER/attitude_SPAN[_compensated])")
+    p.add_argument("--configs", nargs="+", default=list(CONFIGS), metavar="CONFIG")
+    p.add_argument("--gyros", nargs="+", default=list(GYROS), metavar="NAME")
+    p.add_argument("--magnetometer", default="HMC5883L", metavar="NAME")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], metavar="SEED")
+    p.add_argument("--no-render", action="store_true", help="use only the run files already there")
+    p.add_argument("--thermal-compensation", action="store_true",
+                   help="gyro bias temperature effect compensated on board (to 22 %%)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default %(default)s)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cli_attitude_study)
+    return p
+
+
+def cli_attitude_study(args):
+    """Run the study from parsed arguments; print where the page is."""
+    import sys
+    log = (lambda m: print(m, file=sys.stderr))
+    res = attitude_study(args.folder, span=args.span, configs=args.configs, gyros=args.gyros, seeds=args.seeds,
+                         magnetometer=args.magnetometer, page_folder=args.page, render=not args.no_render,
+                         scheduler=args.scheduler, workers=args.workers,
+                         thermal_compensation=args.thermal_compensation, log=log)
+    page = args.page or default_page(args.folder, args.span, args.thermal_compensation)
+    if args.json:
+        print(json.dumps({"page": page, "rows": len(res["rows"])}))
+    else:
+        print(f"results page: {page}/README.md ({len(res['rows'])} evaluations)")
+    return 0
