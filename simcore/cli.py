@@ -475,6 +475,45 @@ def _sensor_errors_help(name):
     return getattr(sensor_errors, name).replace("%", "%%")
 
 
+def cmd_attitude_study(args):
+    """MEKF per configuration x gyro x on-board albedo x seed on rendered runs, with a results page."""
+    from simcore.studies.attitude import attitude_study, default_page
+    log = (lambda m: print(m, file=sys.stderr))
+    res = attitude_study(args.folder, span=args.span, configs=args.configs, gyros=args.gyros, seeds=args.seeds,
+                         magnetometer=args.magnetometer, page_folder=args.page, render=not args.no_render,
+                         scheduler=args.scheduler, workers=args.workers,
+                         thermal_compensation=args.thermal_compensation, log=log)
+    page = args.page or default_page(args.folder, args.span, args.thermal_compensation)
+    if args.json:
+        print(json.dumps({"page": page, "rows": len(res["rows"])}))
+    else:
+        print(f"results page: {page}/README.md ({len(res['rows'])} evaluations)")
+    return 0
+
+
+def _add_attitude_study_parser(sub):
+    """Add ``sunsim attitude-study`` to the subparsers."""
+    from simcore.studies.attitude import CONFIGS, GYROS, SPANS
+    p = sub.add_parser("attitude-study", help="attitude error per configuration x gyro (MEKF on rendered runs, "
+                                              "seeds on Dask), with a results page")
+    p.add_argument("--span", choices=list(SPANS), default="orbits",
+                   help="the run files of 'sunsim reproduce' to use or render (default %(default)s)")
+    p.add_argument("--folder", default="runs/thesis", help="run files (shared with sunsim reproduce)")
+    p.add_argument("--page", help="results page folder (default FOLDER/attitude_SPAN[_compensated])")
+    p.add_argument("--configs", nargs="+", default=list(CONFIGS), metavar="CONFIG")
+    p.add_argument("--gyros", nargs="+", default=list(GYROS), metavar="NAME")
+    p.add_argument("--magnetometer", default="HMC5883L", metavar="NAME")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], metavar="SEED")
+    p.add_argument("--no-render", action="store_true", help="use only the run files already there")
+    p.add_argument("--thermal-compensation", action="store_true",
+                   help="gyro bias temperature effect compensated on board (to 22 %%)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default %(default)s)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_attitude_study)
+    return p
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {__version__}")
@@ -571,8 +610,7 @@ def build_parser():
     ap.add_argument("--json", action="store_true")
     ap.set_defaults(func=cmd_aperture_sweep)
 
-    from simcore.studies.attitude import add_parser as _attitude_study_parser
-    _attitude_study_parser(sub)
+    _add_attitude_study_parser(sub)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)

@@ -638,7 +638,7 @@ def shared_error_ylim(err_deg, sunlit=None):
 
 
 __all__ = ["plot_albedo_cells", "plot_angular_response", "plot_coverage_map", "plot_diode_irradiance",
-           "plot_estimator_error", "plot_mekf", "save_figure", "shared_error_ylim"]
+           "plot_attitude_bars", "plot_estimator_error", "plot_mekf", "save_figure", "shared_error_ylim"]
 
 
 # ----------------------------------------------------------------------------- aperture studies
@@ -794,3 +794,25 @@ def plot_mekf(res, folder, title=""):
     ax.set_title(f"{title} NEES, in 95 % bounds {res['summary']['nees_in_bounds']:.1%} of the time")
     paths += save_figure(fig, folder / "nees.png")
     return [str(p) for p in paths]
+
+
+def plot_attitude_bars(cells, configs, gyros, ylabel, path=None):
+    """Return a Figure of bars per configuration and gyro, with and without the on-board albedo prediction
+    (two panels, log scale): ``cells`` {(config, gyro, onboard): (mean over seeds, spread)}; ``path`` writes it."""
+    fig = _figure(12, 4)
+    axes = fig.subplots(1, 2, sharey=True)
+    x = np.arange(len(configs))
+    w = 0.8 / len(gyros)
+    for ax, onboard in zip(axes, (True, False)):
+        for i, g in enumerate(gyros):
+            m = [cells[(c, g, onboard)] for c in configs]
+            ax.bar(x + (i - (len(gyros) - 1) / 2) * w, [a for a, _ in m], w, yerr=[s for _, s in m],
+                   label=g, capsize=2)
+        ax.set_xticks(x, configs, rotation=30, ha="right")
+        ax.set_title(("with" if onboard else "without") + " on-board albedo prediction")
+        ax.set_yscale("log")
+    axes[0].set_ylabel(ylabel)
+    axes[0].legend(fontsize=8)
+    if path is not None:
+        save_figure(fig, path)
+    return fig

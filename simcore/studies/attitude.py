@@ -14,6 +14,8 @@ import os
 
 import numpy as np
 
+from simcore.plots import plot_attitude_bars, plot_mekf
+
 from simcore.studies.reproduce import CONFIGS, SPANS, ensure_run, run_options
 
 GYROS = ("MPU-3300", "IMU160", "BMG160", "L3G4200D")   # the thesis' recommendation and the flown part
@@ -137,33 +139,17 @@ def _select(rows, **kw):
 
 
 def _figures(results, page_folder, paths, log):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     rows, gyros, configs = results["rows"], results["gyros"], results["configs"]
     for key, label in (("sunlit_p95", "sunlit 95th percentile"), ("eclipse_p95", "eclipse 95th percentile")):
         if not any(r[key] is not None and r[key] > 0 for r in rows):
             log(f"  no {label} values (no such epochs in this span): no figure {key}.png")
             continue
-        fig, axes = plt.subplots(1, 2, figsize=(12, 4), sharey=True)
-        for ax, onboard in zip(axes, (True, False)):
-            x = np.arange(len(configs))
-            w = 0.8 / len(gyros)
-            for i, g in enumerate(gyros):
-                m = [_agg(_select(rows, config=c, gyro=g, onboard_albedo=onboard), key) for c in configs]
-                ax.bar(x + (i - (len(gyros) - 1) / 2) * w, [a for a, _ in m], w, yerr=[s for _, s in m],
-                       label=g, capsize=2)
-            ax.set_xticks(x, configs, rotation=30, ha="right")
-            ax.set_title(("with" if onboard else "without") + " on-board albedo prediction")
-            ax.set_yscale("log")
-        axes[0].set_ylabel(f"attitude error, {label} [deg]")
-        axes[0].legend(fontsize=8)
-        fig.tight_layout()
-        fig.savefig(os.path.join(page_folder, f"{key}.png"), dpi=110)
-        plt.close(fig)
+        cells = {(c, g, onboard): _agg(_select(rows, config=c, gyro=g, onboard_albedo=onboard), key)
+                 for c in configs for g in gyros for onboard in (True, False)}
+        plot_attitude_bars(cells, configs, gyros, f"attitude error, {label} [deg]",
+                           os.path.join(page_folder, f"{key}.png"))
     # One time series: the best-ranked FOV-70 layout, flown gyro vs recommended, seed 0, on-board albedo.
     from simcore.pipeline.evaluate_attitude import run_mekf
-    from simcore.plots import plot_mekf
     from simcore.pipeline.run import open_run
     cfg = "tilt20_fov70" if "tilt20_fov70" in paths else configs[0]
     for g in dict.fromkeys([gyros[0], "BMG160" if "BMG160" in gyros else gyros[-1], gyros[-1]]):
@@ -229,41 +215,3 @@ def write_page(results, page_folder):
             lines += ["", f.read()]
     with open(os.path.join(page_folder, "README.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
-
-
-def add_parser(sub):
-    """Add ``sunsim attitude-study`` to the CLI's subparsers; its function is :func:`cli_attitude_study`."""
-    p = sub.add_parser("attitude-study", help="attitude error per configuration x gyro (MEKF on rendered runs, "
-                                              "seeds on Dask), with a results page")
-    p.add_argument("--span", choices=list(SPANS), default="orbits",
-                   help="the run files of 'sunsim reproduce' to use or render (default %(default)s)")
-    p.add_argument("--folder", default="runs/thesis", help="run files (shared with sunsim reproduce)")
-    p.add_argument("--page", help="results page folder (default FOLDER/attitude_SPAN[_compensated])")
-    p.add_argument("--configs", nargs="+", default=list(CONFIGS), metavar="CONFIG")
-    p.add_argument("--gyros", nargs="+", default=list(GYROS), metavar="NAME")
-    p.add_argument("--magnetometer", default="HMC5883L", metavar="NAME")
-    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], metavar="SEED")
-    p.add_argument("--no-render", action="store_true", help="use only the run files already there")
-    p.add_argument("--thermal-compensation", action="store_true",
-                   help="gyro bias temperature effect compensated on board (to 22 %%)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default %(default)s)")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=cli_attitude_study)
-    return p
-
-
-def cli_attitude_study(args):
-    """Run the study from parsed arguments; print where the page is."""
-    import sys
-    log = (lambda m: print(m, file=sys.stderr))
-    res = attitude_study(args.folder, span=args.span, configs=args.configs, gyros=args.gyros, seeds=args.seeds,
-                         magnetometer=args.magnetometer, page_folder=args.page, render=not args.no_render,
-                         scheduler=args.scheduler, workers=args.workers,
-                         thermal_compensation=args.thermal_compensation, log=log)
-    page = args.page or default_page(args.folder, args.span, args.thermal_compensation)
-    if args.json:
-        print(json.dumps({"page": page, "rows": len(res["rows"])}))
-    else:
-        print(f"results page: {page}/README.md ({len(res['rows'])} evaluations)")
-    return 0
