@@ -299,7 +299,7 @@ def named_map(name):
             raise InvalidInputError(f"{name}: {exc}") from None
     close = difflib.get_close_matches(key, MAP_NAMES, n=1)
     hint = f"did you mean {close[0]}? " if close else ""
-    raise InvalidInputError(f"unknown reflectivity map {name!r}; {hint}use one of {', '.join(MAP_NAMES)} "
+    raise InvalidInputError(f"unknown reflectivity map {name!r}; {hint}use one of {', '.join(MAP_NAMES)}, "
                             "uniform:ALBEDO or a .npz file")
 
 
