@@ -52,8 +52,7 @@ def _case(tmp_path, bad, good, words):
 
 def _cuda_works():
     from simcore.render.irradiance import _cuda_works
-    import mitsuba  # noqa: F401
-    return _cuda_works()
+    return _cuda_works()        # imports Dr.Jit through simcore._llvm, its libLLVM set first
 
 
 # ---- item 3 and 5: every argument checked before the output path is touched ------------------------------
