@@ -30,6 +30,7 @@ import numpy as np
 
 from simcore.errors import InvalidInputError
 
+from simcore.environment.eclipse import sunlit as eclipse_sunlit
 from estimators.attitude import (MEKF, attitude_error_body, dcm_to_quat, nees, quat_mul, quat_to_dcm, rotvec_to_quat,
                                  time_to_converge_s, triad)
 
@@ -112,7 +113,7 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
     q_true = ds["q_gcrs_from_body"].values
     R_true = geo.R_gcrs_from_body
     illum = ds["illumination"].values.astype(float)
-    sunlit = illum >= 1.0
+    sunlit = eclipse_sunlit(illum)
     eclipse = ~sunlit
     valid = ds["valid"].values.astype(bool)
 
