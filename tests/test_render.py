@@ -242,7 +242,10 @@ def test_shadow_of_a_plate_edge_matches_its_area(hint):
 def test_finite_solar_disc_gives_half_the_sun_at_the_limb():
     # Penumbra: a uniform solar disc centred on the Earth's limb is half hidden (the limb is
     # a straight edge to within (disc radius / limb radius) ~ 0.4 %); a disc wholly above
-    # the limb gives the full E_sun * <cos> over the disc (= E_sun (1 + cos a)/2 facing it).
+    # the limb gives the full E_sun on a plate facing its centre: the total solar irradiance is
+    # by definition the irradiance on a surface normal to the Sun's direction, int L cos(alpha)
+    # dOmega over the disc (Kopp & Lean 2011), not L x the disc's solid angle. (Reading the
+    # lanes' mean cos over the disc as E_sun x <cos> = E_sun (1 + cos a)/2 was 5.4e-6 low.)
     dist = R + 700e3
     limb = np.arcsin(R / dist)
     a = SUN_ANGULAR_RADIUS_RAD
@@ -252,7 +255,7 @@ def test_finite_solar_disc_gives_half_the_sun_at_the_limb():
     earth = dist * np.stack([np.sin(ang), np.zeros(3), np.cos(ang)], axis=1)
     sun = np.tile([0.0, 0.0, 1.0], (3, 1))
     res = rend.render(sun, earth, np.tile(np.eye(3), (3, 1, 1)), seed=4)
-    full = E_SUN_W_M2 * (1 + np.cos(a)) / 2                # mean cos over a uniform cap of radius a
+    full = E_SUN_W_M2
     assert abs(res.direct_w_m2[0, 0] / full - 0.5) < 3 * res.direct_se_w_m2[0, 0] / full + 0.005
     np.testing.assert_allclose(res.direct_w_m2[1, 0], full, rtol=1e-6)
     assert res.direct_w_m2[2, 0] == 0

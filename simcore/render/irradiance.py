@@ -820,7 +820,10 @@ class Renderer:
     def _direct_rounds(self, e_, k_, g_, sun, earth, E, cos_c, seed, n0, rel, floor, cap, out, n_used):
         base = self._tasks(e_, k_, sun, earth, None)
         disc = self.sun_angular_radius_rad > 0
-        fac = E[e_] * (1.0 if disc else cos_c[e_, k_])     # lane mean -> W/m^2
+        # lane mean -> W/m^2. With the disc, lanes read cos(n, d) for directions d uniform in solid angle
+        # over the disc, whose mean is cos(n, s) (1 + cos a) / 2, while the irradiance of a uniform disc of
+        # total E is E cos(n, s) exactly: hence the factor 2 / (1 + cos a).
+        fac = E[e_] * (2.0 / (1.0 + np.cos(self.sun_angular_radius_rad)) if disc else cos_c[e_, k_])
         skip = None
         if self.control_variate and not disc:
             lit = self._lit_fraction(k_, sun[e_])
