@@ -1,93 +1,208 @@
-"""The analytic check of rendered irradiance (every epoch, every diode).
+"""The analytic check of rendered irradiance: statistical tests with a stated false-alarm rate.
 
-* Direct Sun: the rendered value must lie within ``max(0.5 % of E_sun cos, 3 sigma)``
-  of the analytic aperture response (exact for the traced well), where cos is
-  the incidence on the diode. An unbiased estimate with standard error sigma
-  still leaves a band of half-width ``tol`` with probability erfc(tol / (sigma
-  sqrt 2)) (0.27 % where 3 sigma sets the band: grazing incidence, partial
-  shadows); the verdict asks the outlier count to be consistent with the sum of
-  these probabilities: a Poisson tail probability of at least 1e-3.
-* Albedo: ``z = (rendered - analytic) / sqrt(sigma^2 + delta^2)``, with the
-  analytic Bhanderi sum on a map refined by ``factor`` x ``factor`` (the same
-  piecewise-constant reflectivity, so it converges to the integral the renderer
-  samples) and ``delta`` its remaining cell-discretisation error, estimated from
-  the difference to the native grid as ``|A_native - A_refined| / (factor^2 - 1)``
-  (the cell-centre sum is second order in the cell size: Richardson). Over
-  diode-epochs with albedo above ``albedo_floor_w_m2`` the z-scores should be
-  N(0, 1): mean |z| ~ 0.80, and |z| > 4 in ~6e-5 of them.
+Every diode-epoch of a run gives, per component, a difference ``d = rendered -
+reference`` and its variance ``v = se^2 (+ delta^2)``: the renderer's standard
+error squared (an unbiased estimate of the variance of its stratified mean,
+computed from samples that never decided how many samples to take), plus, for
+the albedo, the square of the reference's own estimated cell-discretisation
+error ``delta``. Three components are checked:
+
+* ``direct``: the direct Sun as rendered (with the analytic wells' aperture
+  split, ``simcore.render.irradiance``), against the analytic aperture response
+  with the body's shadow and the solar-disc quadrature;
+* ``direct_plain``: on a random share of the epochs, the direct Sun rendered a
+  second time without the analytic aperture hint and with its own random
+  numbers: an estimate that shares nothing with the analytic model, so a wrong
+  aperture response or body shadow shows here whatever the hinted estimate does;
+* ``albedo``: against the Bhanderi cell sum on the map refined ``factor`` x
+  ``factor`` (see :func:`discretisation_bound`).
+
+For each component four families of tests, over the diode-epochs whose
+standard error is positive. The others are tested one by one: a value the
+renderer did not sample (exactly zero by geometry) must equal the reference to
+float32 arithmetic (``EXACT_REL_TOL``); a direct value whose ``n`` samples all
+read the same (zero standard error: a sliver of light every sample missed, or
+a fully lit diode under a point Sun) may differ from the reference by at most
+``E_sun ln(1 / alpha) / n`` (a lane reads between 0 and E_sun: the chance that
+n samples all miss a part worth more than this is below alpha).
+
+1. bias, overall: ``B = sum d / sqrt(sum v)`` is N(0, 1) when the rendering is
+   unbiased (the sum of many independent differences, whatever each one's
+   distribution);
+2. bias, per diode: the same over each diode's epochs (a wrong aperture or a
+   diode-specific shadow), Bonferroni over the diodes;
+3. spread: ``S = sum (d^2 - v) / sqrt(sum (d^2 - v)^2)`` is N(0, 1) when the
+   standard errors are right (``E d^2 = E v``): too small or too large errors,
+   a mirrored map, a rotated attitude all move it. The pooled z spread
+   ``sqrt(sum d^2 / sum v)`` is reported beside it;
+4. tails: the count of |z| > 4, with z the normal score of
+   ``t = d / sqrt(v)`` under Student's t with the standard error's effective
+   degrees of freedom (Satterthwaite), against Binomial(n, 6.33e-5).
+
+The run's false-alarm rate is ``ALPHA_RUN = 1e-3``, split equally over the
+3 x 4 families (Bonferroni; the families are not independent, so the true rate
+is at most this). Each test is reported with its statistic, threshold and
+p-value; the run passes when every test does.
 """
 import math
 
 import numpy as np
+from scipy import stats
 
-DIRECT_REL_TOL = 0.005      # of E_sun cos(incidence)
-DIRECT_SIGMAS = 3.0
-ALBEDO_FLOOR_W_M2 = 1.0
-ALBEDO_Z_OUTLIER = 4.0
-MEAN_ABS_Z_MAX = 1.0
-DIRECT_ABS_FLOOR_W_M2 = 1e-9       # values this close are equal (e.g. 1e-14 against an exact 0)
-OUTLIER_SHARE_MAX = 0.003
-
-
-def poisson_tail(k, lam):
-    """Return P(N >= k) for N ~ Poisson(lam)."""
-    if k <= 0:
-        return 1.0
-    term, below = math.exp(-lam), 0.0
-    for i in range(k):
-        below += term
-        term *= lam / (i + 1)
-    return max(0.0, 1.0 - below)
+ALPHA_RUN = 1e-3            # false-alarm rate of the whole check, per run
+COMPONENTS = ("direct", "direct_plain", "albedo")
+FAMILIES = ("bias", "bias_per_diode", "spread", "tails")
+Z_TAIL = 4.0
+P_TAIL = float(2.0 * stats.norm.sf(Z_TAIL))        # 6.33e-5: P(|z| > 4) for z ~ N(0, 1)
+EXACT_REL_TOL = 1e-5        # exact values (zero standard error): float32 arithmetic, of E_sun cos(incidence)
+EXACT_ABS_TOL_W_M2 = 1e-9   # values this close are equal (e.g. 1e-14 against an exact 0)
+ALBEDO_FLOOR_W_M2 = 1.0     # albedo diode-epochs checked: reference above this
 
 
 def discretisation_bound(albedo_native, albedo_refined, factor):
-    """Return the estimated cell-discretisation error of the refined analytic albedo (W/m^2)."""
+    """Return the estimated cell-discretisation error of the refined analytic albedo (W/m^2).
+
+    The cell-centre sum is second order in the cell size (Richardson), so the refined sum's
+    error is about ``|A_native - A_refined| / (factor^2 - 1)``.
+    """
     return np.abs(np.asarray(albedo_native) - np.asarray(albedo_refined)) / (factor ** 2 - 1.0)
 
 
-def compare(direct, direct_se, direct_ref, albedo, albedo_se, albedo_ref, albedo_bound, e_sun_cos, *,
-            considered=None):
-    """Return (flags, report): per diode-epoch outlier flags for 'direct' and 'albedo' (bool (N, K)),
-    and a summary dict of the check's figures and verdict.
-
-    ``e_sun_cos`` (N, K): E_sun x the cosine of incidence on each diode (the scale of the 0.5 %
-    direct tolerance). ``considered`` (N, K) bool: diode-epochs that take part (default: all finite).
-    """
-    direct, direct_se, direct_ref = map(np.asarray, (direct, direct_se, direct_ref))
-    albedo, albedo_se, albedo_ref, albedo_bound = map(np.asarray, (albedo, albedo_se, albedo_ref, albedo_bound))
-    finite = np.isfinite(direct) & np.isfinite(direct_ref) & np.isfinite(albedo) & np.isfinite(albedo_ref)
-    use = finite if considered is None else (finite & np.asarray(considered, bool))
-
-    band = DIRECT_REL_TOL * np.asarray(e_sun_cos)
-    tol = np.maximum(np.maximum(band, DIRECT_SIGMAS * direct_se), DIRECT_ABS_FLOOR_W_M2)
-    d_err = np.abs(direct - direct_ref)
-    direct_bad = use & (d_err > tol)
-    # Expected number of chance exceedances of unbiased normal estimates (only sigma > 0 contributes).
-    ratio = np.where(use & (direct_se > 0), tol / np.where(direct_se > 0, direct_se, 1.0), np.inf)
-    near = ratio[ratio < 10.0]
-    chance = float(sum(math.erfc(x / math.sqrt(2.0)) for x in near))
-    sig = np.sqrt(albedo_se ** 2 + albedo_bound ** 2)
+def normal_scores(diff, var, dof):
+    """Return the normal scores of ``t = diff / sqrt(var)`` under Student's t with ``dof`` degrees of
+    freedom (inf: t itself), i.e. Phi^-1(F_t(t)): N(0, 1) when t follows that t distribution."""
+    diff, var, dof = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (diff, var, dof)))
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(sig > 0, (albedo - albedo_ref) / sig, 0.0)
-    lit = use & (albedo_ref > ALBEDO_FLOOR_W_M2)
-    albedo_bad = lit & (np.abs(z) > ALBEDO_Z_OUTLIER)
-    zl = np.abs(z[lit])
-    n_direct = int(use.sum())
-    n_albedo = int(lit.sum())
-    mean_abs_z = float(zl.mean()) if zl.size else float("nan")
-    share_out = float((zl > ALBEDO_Z_OUTLIER).mean()) if zl.size else 0.0
-    report = {
-        "direct_checked": n_direct,
-        "direct_outliers": int(direct_bad.sum()),
-        "direct_worst_abs_w_m2": float(d_err[use].max()) if n_direct else 0.0,
-        "albedo_checked": n_albedo,
-        "albedo_mean_abs_z": mean_abs_z,
-        "albedo_share_abs_z_gt_4": share_out,
-        "albedo_outliers": int(albedo_bad.sum()),
-        "albedo_max_abs_z": float(zl.max()) if zl.size else 0.0,
-    }
-    report["direct_outliers_expected_by_chance"] = chance
-    report["direct_pass"] = bool(poisson_tail(report["direct_outliers"], chance) >= 1e-3)
-    report["albedo_pass"] = bool(n_albedo == 0 or (mean_abs_z < MEAN_ABS_Z_MAX and share_out < OUTLIER_SHARE_MAX))
-    report["pass"] = bool(report["direct_pass"] and report["albedo_pass"])
-    return {"direct": direct_bad, "albedo": albedo_bad, "albedo_z": z}, report
+        t = diff / np.sqrt(var)
+    z = t.copy()
+    fin = np.isfinite(dof) & np.isfinite(t)
+    if np.any(fin):
+        nu = np.maximum(dof[fin], 1.0)
+        # Both tails through the survival function, so that |z| up to ~38 keeps its precision.
+        p = stats.t.sf(np.abs(t[fin]), nu)
+        z[fin] = np.sign(t[fin]) * stats.norm.isf(p)
+    return z
+
+
+def _threshold(alpha):
+    """Return the two-sided N(0, 1) threshold of size ``alpha``."""
+    return float(stats.norm.isf(alpha / 2.0))
+
+
+def binomial_tail(k, n, p):
+    """Return P(X >= k) for X ~ Binomial(n, p)."""
+    return 1.0 if k <= 0 else float(stats.binom.sf(k - 1, n, p))
+
+
+def _component_tests(name, diff, var, dof, diode, n_diodes, alpha):
+    """Return the list of test dicts of one component (arrays over its stochastic diode-epochs)."""
+    tests = []
+    n = diff.size
+    thr = _threshold(alpha)
+    if n == 0:
+        return [dict(component=name, test=f, n=0, statistic=None, threshold=None, p_value=None, passed=True,
+                     note="nothing to test") for f in FAMILIES]
+    sv = float(var.sum())
+    b = float(diff.sum() / math.sqrt(sv)) if sv > 0 else 0.0
+    tests.append(dict(component=name, test="bias", n=n, statistic=b, threshold=thr,
+                      p_value=float(2 * stats.norm.sf(abs(b))), passed=abs(b) <= thr,
+                      note=f"mean difference {diff.mean():+.4g} W/m^2, mean z {b / math.sqrt(n):+.4f}"))
+    per = []
+    worst = (0.0, -1)
+    live = [k for k in range(n_diodes) if np.any(diode == k)]
+    thr_k = _threshold(alpha / max(len(live), 1))
+    for k in live:
+        sel = diode == k
+        vk = float(var[sel].sum())
+        bk = float(diff[sel].sum() / math.sqrt(vk)) if vk > 0 else 0.0
+        per.append(bk)
+        if abs(bk) > abs(worst[0]):
+            worst = (bk, k)
+    tests.append(dict(component=name, test="bias_per_diode", n=len(live), statistic=worst[0], threshold=thr_k,
+                      p_value=float(min(1.0, len(live) * 2 * stats.norm.sf(abs(worst[0])))),
+                      passed=abs(worst[0]) <= thr_k, note=f"worst diode {worst[1]}",
+                      per_diode={int(k): float(x) for k, x in zip(live, per)}))
+    u = diff * diff - var
+    su2 = float((u * u).sum())
+    s = float(u.sum() / math.sqrt(su2)) if su2 > 0 else 0.0
+    pooled = math.sqrt(float((diff * diff).sum()) / sv) if sv > 0 else float("nan")
+    tests.append(dict(component=name, test="spread", n=n, statistic=s, threshold=thr,
+                      p_value=float(2 * stats.norm.sf(abs(s))), passed=abs(s) <= thr,
+                      note=f"pooled z spread {pooled:.4f}"))
+    z = normal_scores(diff, var, dof)
+    k_out = int(np.count_nonzero(np.abs(z) > Z_TAIL))
+    p_tail = binomial_tail(k_out, n, P_TAIL)
+    tests.append(dict(component=name, test="tails", n=n, statistic=k_out, threshold=None, p_value=p_tail,
+                      passed=p_tail >= alpha,
+                      note=f"|z| > {Z_TAIL:g}: {k_out}, expected {n * P_TAIL:.2f}; max |z| "
+                           f"{float(np.abs(z).max()):.2f}"))
+    return tests
+
+
+def compare(components, n_diodes, e_sun, e_sun_cos, *, alpha=ALPHA_RUN):
+    """Return (flags, report): per diode-epoch |z| > 4 flags per component (bool (N, K)) and the check's
+    report: every test with its statistic, threshold and p-value, and the verdict.
+
+    ``components``: dict name -> (rendered, se, dof, samples, reference, extra_var) arrays (N, K) (NaN
+    where not rendered or not considered; ``extra_var`` the reference's own variance, e.g. delta^2, or 0).
+    ``e_sun`` (N, 1) and ``e_sun_cos`` (N, K): E_sun, and x the cosine of incidence on each diode.
+    """
+    alpha_family = alpha / (len(components) * len(FAMILIES))
+    diode_idx = None
+    report = {"alpha_run": alpha, "alpha_per_test_family": alpha_family, "tests": []}
+    flags = {}
+    for name, (x, se, dof, samples, ref, extra) in components.items():
+        x, se, dof, samples, ref = (np.asarray(a, dtype=float) for a in (x, se, dof, samples, ref))
+        extra = np.broadcast_to(np.asarray(extra, dtype=float), x.shape)
+        if diode_idx is None or diode_idx.shape != x.shape:
+            diode_idx = np.broadcast_to(np.arange(x.shape[1]), x.shape)
+        use = np.isfinite(x) & np.isfinite(ref) & np.isfinite(se)
+        if name == "albedo":
+            use &= ref > ALBEDO_FLOOR_W_M2
+        exact = use & (se == 0)
+        stoch = use & (se > 0)
+        d = x - ref
+        var = se ** 2 + extra
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dof_tot = np.where(np.isfinite(dof) & (se > 0), var ** 2 / (se ** 4 / np.where(dof > 0, dof, 1.0)),
+                               np.inf)
+        tol = np.maximum(EXACT_REL_TOL * np.abs(np.asarray(e_sun_cos, dtype=float)), EXACT_ABS_TOL_W_M2) \
+            + np.sqrt(extra)
+        if name != "albedo":       # all n samples alike: what they may all have missed (docstring)
+            with np.errstate(divide="ignore"):
+                tol = tol + np.where(samples > 0, np.asarray(e_sun, dtype=float) * math.log(1.0 / alpha_family)
+                                     / np.maximum(samples, 1.0), 0.0)
+        exact_bad = exact & (np.abs(d) > tol)
+        report["tests"].append(dict(component=name, test="exact", n=int(exact.sum()),
+                                    statistic=int(exact_bad.sum()), threshold=0, p_value=None,
+                                    passed=not exact_bad.any(),
+                                    note="values with zero standard error off by more than float32 "
+                                         "arithmetic (or what all their samples may have missed)"))
+        report["tests"] += _component_tests(name, d[stoch], var[stoch], dof_tot[stoch], diode_idx[stoch],
+                                            x.shape[1], alpha_family)
+        z = np.zeros(x.shape)
+        z[stoch] = normal_scores(d[stoch], var[stoch], dof_tot[stoch])
+        flags[name] = (stoch & (np.abs(z) > Z_TAIL)) | exact_bad
+        report[f"{name}_checked"] = int(use.sum())
+    report["pass"] = bool(all(t["passed"] for t in report["tests"]))
+    return flags, report
+
+
+def describe(report):
+    """Return the check report as printable lines: one per test with its statistic and threshold."""
+    lines = [f"check: false-alarm rate {report['alpha_run']:g} per run ({report['alpha_per_test_family']:.2g} "
+             f"per test family)"]
+    for t in report["tests"]:
+        stat = t["statistic"]
+        if t["test"] in ("bias", "bias_per_diode", "spread") and stat is not None:
+            s = f"|{stat:+.3f}| <= {t['threshold']:.3f}"
+        elif t["test"] == "tails" and stat is not None:
+            s = f"P(>= {stat}) = {t['p_value']:.3g} >= {report['alpha_per_test_family']:.2g}"
+        elif t["test"] == "exact":
+            s = f"{stat} off of {t['n']}"
+        else:
+            s = "-"
+        lines.append(f"  {'ok  ' if t['passed'] else 'FAIL'} {t['component']:<12} {t['test']:<15} n={t['n']:<7} "
+                     f"{s}   ({t['note']})")
+    lines.append(f"check: {'PASS' if report['pass'] else 'FAIL'}")
+    return lines

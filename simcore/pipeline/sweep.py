@@ -95,8 +95,7 @@ def combine(points, out_path):
         file=("run", np.array([os.path.basename(p.output) for p in points], dtype=object)),
     )
     ds["check_pass"] = ("run", np.array([int(r["pass"]) for r in reports], np.int8))
-    ds["albedo_mean_abs_z"] = ("run", np.array([r["albedo_mean_abs_z"] for r in reports]))
-    ds["direct_outliers"] = ("run", np.array([r["direct_outliers"] for r in reports]))
+    ds["check_failed_tests"] = ("run", np.array([sum(not t["passed"] for t in r["tests"]) for r in reports]))
     ds.attrs.update({"title": "sunsim sweep", "runs": len(points),
                      "options": json.dumps(dataclasses.asdict(points[0]), default=str)})
 

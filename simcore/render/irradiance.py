@@ -75,6 +75,9 @@ _VIS_NT, _VIS_NP = 90, 180  # visibility table over each diode's hemisphere (1 x
 # Radial bins of the albedo proposal: edges 40 % of the way from equal solid angle to equal
 # ground (central) angle; the Sun's cosine at the bin corners widened by ~half a bin.
 _EDGE_MIX, _MARGIN_SCALE = 0.4, 1.0
+# Estimators (part of the random-number key): the direct Sun, the albedo, the direct Sun without the
+# analytic aperture split (the check's independent estimate).
+_DIRECT, _ALBEDO, _DIRECT_PLAIN = 1, 2, 3
 _MAX_LANES = 1 << 22      # lanes per launch (memory bound, ~100 MB of temporaries)
 
 
@@ -187,7 +190,8 @@ class RenderResult:
 
     ``direct_*``: the Sun seen directly; ``albedo_*``: sunlight reflected by the
     Earth; ``*_se_w_m2``: one standard error of the Monte-Carlo estimate;
-    ``*_samples``: rays traced for each (epoch, diode) (0 where the value is
+    ``*_dof``: the standard error's effective degrees of freedom (inf where
+    it is exactly 0; see ``Renderer._round``); ``*_samples``: rays traced for each (epoch, diode) (0 where the value is
     exactly zero by geometry: Sun behind the diode, full eclipse, no sunlit Earth
     in view). ``valid`` (N,): False for epochs whose inputs were not finite
     (their values are NaN).
@@ -202,6 +206,8 @@ class RenderResult:
     valid: np.ndarray
     variant: str
     seed: int
+    direct_dof: np.ndarray = None
+    albedo_dof: np.ndarray = None
     info: dict = field(default_factory=dict)
 
     @property
@@ -633,10 +639,10 @@ class Renderer:
         return t
 
     def render(self, sun_dir_body, earth_center_body_m=None, R_ecef_from_body=None, sun_scale=None, *,
-               seed=0, epoch_offset=0, direct_samples=_DIRECT_SAMPLES0, albedo_samples=2 * _ALBEDO_STRATA0,
+               seed=0, epoch_offset=0, epoch_index=None, direct_samples=_DIRECT_SAMPLES0, albedo_samples=2 * _ALBEDO_STRATA0,
                rel_se_direct=None, rel_se_albedo=None, abs_se_floor_w_m2=0.01,
                max_direct_samples=1 << 17,
-               max_albedo_samples=65536, albedo=True, batch_epochs=64, progress=None):
+               max_albedo_samples=65536, albedo=True, hint=True, batch_epochs=64, progress=None):
         """Return a :class:`RenderResult`: direct-Sun and albedo irradiance (N, K) in W/m^2 with
         standard errors.
 
@@ -648,8 +654,11 @@ class Renderer:
         ``rel_se_direct`` / ``rel_se_albedo``: target relative standard errors (e.g. 0.002, 0.01)
         met by further rounds for the diode-epochs above it (or above ``abs_se_floor_w_m2``),
         up to ``max_*_samples`` each. ``epoch_offset``: global index of the first epoch, so that a
-        run rendered in pieces draws the same random numbers as in one go. ``albedo=False`` skips
-        the albedo (zeros). ``batch_epochs``: epochs per wavefront (results do not depend on it).
+        run rendered in pieces draws the same random numbers as in one go; ``epoch_index`` (N,) int: the
+        global index of each epoch instead (for a scattered subset). ``albedo=False`` skips
+        the albedo (zeros). ``hint=False``: the direct Sun without the analytic wells' aperture split
+        (plain sampling of the diode, its own random numbers): an estimate that shares nothing with the
+        analytic aperture model, for the check. ``batch_epochs``: epochs per wavefront (results do not depend on it).
         ``progress``: optional callable, called with the number of epochs done after each batch.
 
         Per-epoch problems (non-finite inputs) give NaN rows and ``valid`` False; exact zeros
@@ -677,6 +686,10 @@ class Renderer:
             rot = np.asarray(R_ecef_from_body, dtype=float).reshape(-1, 3, 3)
             if rot.shape != (N, 3, 3):
                 raise ValueError(f"R_ecef_from_body must have shape ({N}, 3, 3), got {np.shape(R_ecef_from_body)}")
+        if epoch_index is not None:
+            epoch_index = np.asarray(epoch_index, dtype=np.int64).reshape(-1)
+            if epoch_index.shape != (N,):
+                raise ValueError(f"epoch_index must have shape ({N},), got {epoch_index.shape}")
         scale = np.ones(N) if sun_scale is None else np.broadcast_to(np.asarray(sun_scale, dtype=float), (N,))
         m0 = int(round(np.sqrt(int(direct_samples) / 4.0)))
         if m0 < 2 or 4 * m0 * m0 != int(direct_samples):
@@ -710,6 +723,7 @@ class Renderer:
 
         K = self.diodes.count
         out = {k: np.zeros((N, K)) for k in ("dm", "dse", "am", "ase")}
+        out.update(ddof=np.full((N, K), np.inf), adof=np.full((N, K), np.inf))
         n_dir = np.zeros((N, K), dtype=np.int64)
         n_alb = np.zeros((N, K), dtype=np.int64)
         E = self.e_sun_w_m2 * scale                                  # (N,)
@@ -719,7 +733,7 @@ class Renderer:
         for b0 in range(0, N, batch_epochs):
             eps = np.arange(b0, min(N, b0 + batch_epochs))
             ep, dk = [a.ravel() for a in np.meshgrid(eps, np.arange(K), indexing="ij")]
-            g_ep = ep + int(epoch_offset)
+            g_ep = ep + int(epoch_offset) if epoch_index is None else epoch_index[ep]
             # ---- direct Sun: tasks facing the (disc of the) Sun and not in full umbra
             act = valid[ep] & (cos_c[ep, dk] > -sin_a)
             if earth is not None:
@@ -731,7 +745,8 @@ class Renderer:
             e_, k_ = ep[act], dk[act]
             if len(e_):
                 self._direct_rounds(e_, k_, g_ep[act], sun, earth, E, cos_c, seed, 4 * m0 * m0, rel_se_direct,
-                                    abs_se_floor_w_m2, max_direct_samples, out, n_dir)
+                                    abs_se_floor_w_m2, max_direct_samples, out, n_dir,
+                                    not hint)
             # ---- albedo: tasks whose hemisphere meets the Earth's disc and a sunlit part of it
             if do_albedo:
                 c = earth[ep]
@@ -755,69 +770,79 @@ class Renderer:
         for k in out:
             out[k][nan] = np.nan
         return RenderResult(out["dm"], out["dse"], out["am"], out["ase"], n_dir, n_alb, valid,
-                            self.variant, int(seed),
+                            self.variant, int(seed), out["ddof"], out["adof"],
                             dict(sun_angular_radius_rad=self.sun_angular_radius_rad, e_sun_w_m2=self.e_sun_w_m2))
 
-    def _rounds(self, kernel, base, kind, g_, k_, seed, n0, rel, floor, cap, fac, size, power, skip=None):
-        """Trace rounds of samples for the tasks in ``base`` until each meets its target standard
-        error (or the cap); return (mean, standard error, samples) per task, in lane units x fac.
+    def _rounds(self, kernel, base, kind, g_, k_, seed, n0, rel, floor, cap, fac, size, power, skip=None,
+                plain=False):
+        """Return (mean, standard error, effective degrees of freedom, samples) per task in ``base``,
+        in lane units x fac.
 
-        With an analytic well per diode (``control_variate``), each task's samples are split into
-        group A, ~4/5 of them, drawn on the part of the diode that the analytic well lights
-        (``_well_rect``, weight = its area), and group B, ~1/5, drawn on the whole diode but
+        Without a target (``rel`` None) one round of ``n0`` samples per task. With one, two
+        stages: a pilot round of ``n0 // 4`` samples sizes each task's count (enough to reach
+        the target with the error falling as n^(-1/power), between ``n0`` and ``cap``), and a
+        fresh, independent round of that count gives the value and its standard error. The
+        pilot is then dropped, so the decision to take more samples never shares samples with
+        the estimate it sizes (a stopping rule fed by the estimate's own samples reads low where
+        it stopped early and high where it went on).
+        """
+        if rel is None:
+            return self._round(kernel, base, kind, g_, k_, seed, np.full(len(g_), n0, np.int64), 0, fac, size,
+                               skip, plain)
+        pilot = np.full(len(g_), max(n0 // 4, 16), np.int64)
+        m, se, _, n = self._round(kernel, base, kind, g_, k_, seed, pilot, 0, fac, size, skip, plain)
+        need, want = _shortfall(m, se, n, rel, floor, power)
+        counts = np.clip(np.where(need, want, n0), n0, max(cap, n0)).astype(np.int64)
+        return self._round(kernel, base, kind, g_, k_, seed, counts, 1, fac, size, skip, plain)
+
+    def _round(self, kernel, base, kind, g_, k_, seed, counts, rnd, fac, size, skip, plain=False):
+        """Trace one round of ``counts`` (T,) samples for the tasks in ``base``; return (mean, standard
+        error, effective degrees of freedom, samples) per task, in lane units x fac.
+
+        With an analytic well per diode (``control_variate``, unless ``plain``), each task's samples
+        are split into group A, ~4/5 of them, drawn on the part of the diode that the analytic well
+        lights (``_well_rect``, weight = its area), and group B, ~1/5, drawn on the whole diode but
         counted only outside that part. Both are traced against the full mesh, so the sum is
         unbiased whatever the mesh; when the mesh's well is the analytic one, group B reads 0
         and group A varies only where the body, rails or the Earth cut into the lit part.
         ``skip`` (T, 2) marks groups known to be empty (point Sun, lit fraction 0 or 1).
+
+        The variance of the stratified mean is the sum of the strata's terms ``(a - b)^2 / 4``
+        (two samples a, b per stratum), each a one-degree-of-freedom estimate; few strata carry
+        the variance where a shadow edge or a bright patch crosses only some of them, so the
+        standard error has ``nu = (sum q)^2 / sum q^2`` effective degrees of freedom
+        (Satterthwaite 1946) and ``(estimate - truth) / se`` follows Student's t with ``nu``.
         """
         T = len(g_)
-        acc = np.zeros((3, T))
         todo = np.arange(T)
-        n = np.full(T, n0, dtype=np.int64)
-        split = self.control_variate
-        rnd = 0
-        while len(todo):
-            parts = []
-            if split:
-                na = size(np.maximum(n[todo] * 4 // 5, 1))
-                nb = size(np.maximum(n[todo] // 5, 1))
-                sa = np.zeros(len(todo), bool) if skip is None else skip[todo, 0]
-                sb = np.zeros(len(todo), bool) if skip is None else skip[todo, 1]
-                na = np.where(sb, size(n[todo]), na)        # only A: give it the whole budget
-                nb = np.where(sa, size(n[todo]), nb)
-                parts = [(1, todo[~sa], na[~sa]), (2, todo[~sb], nb[~sb])]
-            else:
-                parts = [(0, todo, size(n[todo]))]
-            idx = np.concatenate([p[1] for p in parts])
-            counts = np.concatenate([p[2] for p in parts]).astype(np.int64)
-            mode = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
-            t = {k: (None if v is None else v[idx]) for k, v in base.items()}
-            t["key"] = _mix32(seed, g_[idx], k_[idx], kind, rnd, mode)
-            t["mode"] = mode
-            t["m"] = _strata_param(kind, counts)
-            mean, var = _task_mean_var(self._trace(kernel, t, counts), counts)
-            est = np.zeros(T)
-            v = np.zeros(T)
-            nr = np.zeros(T)
-            np.add.at(est, idx, mean)
-            np.add.at(v, idx, var)
-            np.add.at(nr, idx, counts)
-            acc[0, todo] += nr[todo]
-            acc[1, todo] += nr[todo] * est[todo]
-            acc[2, todo] += nr[todo] ** 2 * v[todo]
-            if rel is None:
-                break
-            need, want = _shortfall(fac, acc, rel, floor, power)
-            # power 2 (albedo): the pooled error falls as 1/sqrt(n), add what the total lacks;
-            # power 4/3 (direct, shadow edges: n^-3/4): a fresh round sized to reach it alone.
-            add = want - acc[0] if power == 2.0 else want
-            n = np.minimum(np.maximum(add, 64), np.maximum(cap - acc[0], 0)).astype(np.int64)
-            need &= n >= 64
-            todo = np.flatnonzero(need)
-            rnd += 1
-        return fac * acc[1] / acc[0], fac * np.sqrt(acc[2]) / acc[0], acc[0]
+        if self.control_variate and not plain:
+            na = size(np.maximum(counts * 4 // 5, 1))
+            nb = size(np.maximum(counts // 5, 1))
+            sa = np.zeros(T, bool) if skip is None else skip[:, 0]
+            sb = np.zeros(T, bool) if skip is None else skip[:, 1]
+            na = np.where(sb, size(counts), na)        # only A: give it the whole budget
+            nb = np.where(sa, size(counts), nb)
+            parts = [(1, todo[~sa], na[~sa]), (2, todo[~sb], nb[~sb])]
+        else:
+            parts = [(0, todo, size(counts))]
+        idx = np.concatenate([p[1] for p in parts])
+        lanes = np.concatenate([p[2] for p in parts]).astype(np.int64)
+        mode = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
+        t = {k: (None if v is None else v[idx]) for k, v in base.items()}
+        t["key"] = _mix32(seed, g_[idx], k_[idx], kind, rnd, mode)
+        t["mode"] = mode
+        t["m"] = _strata_param(kind != _ALBEDO, lanes)
+        mean, var, var2 = _task_mean_var(self._trace(kernel, t, lanes), lanes)
+        est, v, v2, nr = np.zeros(T), np.zeros(T), np.zeros(T), np.zeros(T)
+        np.add.at(est, idx, mean)
+        np.add.at(v, idx, var)
+        np.add.at(v2, idx, var2)
+        np.add.at(nr, idx, lanes)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dof = np.where(v2 > 0, v * v / np.where(v2 > 0, v2, 1.0), np.inf)
+        return fac * est, fac * np.sqrt(v), dof, nr
 
-    def _direct_rounds(self, e_, k_, g_, sun, earth, E, cos_c, seed, n0, rel, floor, cap, out, n_used):
+    def _direct_rounds(self, e_, k_, g_, sun, earth, E, cos_c, seed, n0, rel, floor, cap, out, n_used, plain):
         base = self._tasks(e_, k_, sun, earth, None)
         disc = self.sun_angular_radius_rad > 0
         # lane mean -> W/m^2. With the disc, lanes read cos(n, d) for directions d uniform in solid angle
@@ -825,20 +850,20 @@ class Renderer:
         # total E is E cos(n, s) exactly: hence the factor 2 / (1 + cos a).
         fac = E[e_] * (2.0 / (1.0 + np.cos(self.sun_angular_radius_rad)) if disc else cos_c[e_, k_])
         skip = None
-        if self.control_variate and not disc:
+        if self.control_variate and not disc and not plain:
             lit = self._lit_fraction(k_, sun[e_])
             skip = np.stack([lit <= 0.0, lit >= 1.0], axis=1)
-        m, se, n = self._rounds(self._direct_kernel, base, 1, g_, k_, seed, n0, rel, floor, cap, fac,
-                                _direct_size, 4.0 / 3.0, skip)
-        out["dm"][e_, k_], out["dse"][e_, k_], n_used[e_, k_] = m, se, n
+        m, se, dof, n = self._rounds(self._direct_kernel, base, _DIRECT_PLAIN if plain else _DIRECT, g_, k_, seed, n0, rel, floor,
+                                     cap, fac, _direct_size, 4.0 / 3.0, skip, plain)
+        out["dm"][e_, k_], out["dse"][e_, k_], out["ddof"][e_, k_], n_used[e_, k_] = m, se, dof, n
 
     def _albedo_rounds(self, e_, k_, g_, sun, earth, rot, E, seed, n0, rel, floor, cap, out, n_used):
         base = self._tasks(e_, k_, sun, earth, None)
         base["rot"] = rot[e_]
         base.update(self._albedo_proposal(dict(base, key=np.zeros(len(e_), np.uint32))))
-        m, se, n = self._rounds(self._albedo_kernel, base, 2, g_, k_, seed, n0, rel, floor, cap, E[e_],
-                                _albedo_size, 2.0)
-        out["am"][e_, k_], out["ase"][e_, k_], n_used[e_, k_] = m, se, n
+        m, se, dof, n = self._rounds(self._albedo_kernel, base, _ALBEDO, g_, k_, seed, n0, rel, floor, cap, E[e_],
+                                     _albedo_size, 2.0)
+        out["am"][e_, k_], out["ase"][e_, k_], out["adof"][e_, k_], n_used[e_, k_] = m, se, dof, n
 
     def _lit_fraction(self, k_, d_body):
         """Return the analytic wells' lit fractions (T,) for diodes k_ and body directions (T, 3)."""
@@ -859,24 +884,25 @@ def _albedo_size(n):
     return np.maximum(2 * np.ceil(np.asarray(n) / 2.0), 4).astype(np.int64)
 
 
-def _strata_param(kind, counts):
+def _strata_param(direct, counts):
     """Return the per-task stratification parameter the kernels read as t['m']: m for the
     direct (4 m^2 samples), the number of strata for the albedo (2 samples each)."""
-    if kind == 1:
+    if direct:
         return np.round(np.sqrt(counts / 4.0))
     return counts / 2.0
 
 
 def _task_mean_var(vals, counts):
-    """Return the mean (T,) and the variance of the mean (T,) of per-lane values laid out task
-    after task (``counts`` each) as strata of two samples (float64)."""
+    """Return the mean (T,), the variance of the mean (T,) and the sum of the squares of its strata's
+    terms (T,; for the effective degrees of freedom) of per-lane values laid out task after task
+    (``counts`` each) as strata of two samples (float64)."""
     v = vals.astype(np.float64)
     starts = np.cumsum(counts) - counts
     mean = np.add.reduceat(v, starts) / counts
     dif = v[0::2] - v[1::2]
-    m = counts // 2
-    var = np.add.reduceat(dif * dif, starts // 2) / (4.0 * m * m)
-    return mean, var
+    m = np.repeat(counts // 2, counts // 2)
+    q = dif * dif / (4.0 * m * m)
+    return mean, np.add.reduceat(q, starts // 2), np.add.reduceat(q * q, starts // 2)
 
 
 def _pad2(t):
@@ -887,15 +913,13 @@ def _pad2(t):
     return {k: (None if v is None else np.concatenate([v, v])) for k, v in t.items()}
 
 
-def _shortfall(fac, acc, rel, floor, power):
-    """Return (tasks above their target standard error, samples the target needs, assuming
-    the error falls as n^(-1/power))."""
-    mean = fac * acc[1] / acc[0]
-    se = fac * np.sqrt(acc[2]) / acc[0]
+def _shortfall(mean, se, n, rel, floor, power):
+    """Return (tasks above their target standard error, samples the target needs), from a round of
+    ``n`` samples that gave ``mean`` and ``se``, assuming the error falls as n^(-1/power)."""
     target = np.maximum(rel * np.abs(mean), floor)
     need = se > target
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        want = 1.2 * acc[0] * (se / target) ** power
+        want = 1.2 * n * (se / target) ** power
     want = np.nan_to_num(want, nan=1.0, posinf=1e18)
     return need, want
 
