@@ -34,7 +34,7 @@ from simcore import _llvm
 from simcore._version import __version__
 from simcore.environment import attitude as _attitude
 from simcore.pipeline import check as _check
-from simcore.constants import E_SUN_W_M2, R_SUN_M, TSI_W_M2
+from simcore.constants import AU_M, E_SUN_W_M2, R_SUN_M, TSI_W_M2
 from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.environment.maps import named_map
@@ -164,6 +164,19 @@ class PreparedRun:
                 variant=self.opts.variant)
         return self._renderer
 
+    def earth_sun_dir_body(self, sl):
+        """Return (n, 3) the unit Earth-centre -> Sun vector in body axes (what lights the Earth, as in the
+        analytic model)."""
+        g = self.geometry
+        r = g.r_sun_ecef_m[sl]
+        return np.einsum("nji,nj->ni", g.R_ecef_from_body[sl], r / np.linalg.norm(r, axis=1)[:, None])
+
+    def earth_sun_scale(self, sl):
+        """Return (n,) the factor on E_sun that lights the Earth: (1 AU / |r_sun|)^2 geocentric, or 1."""
+        if not self.opts.distance_scaling:
+            return np.ones(sl.stop - sl.start)
+        return (AU_M / np.linalg.norm(self.geometry.r_sun_ecef_m[sl], axis=1)) ** 2
+
     def sun_scale(self, sl):
         g = self.geometry
         return g.sun_distance_scale[sl] if self.opts.distance_scaling else np.ones(sl.stop - sl.start)
@@ -184,7 +197,8 @@ class PreparedRun:
         valid = g.valid[sl]
         args = (g.sun_dir_body[sl], g.earth_center_body_m[sl], g.R_ecef_from_body[sl], self.sun_scale(sl))
         res = self.renderer.render(
-            *args, seed=o.seed, epoch_offset=start, direct_samples=o.direct_samples, albedo_samples=o.albedo_samples,
+            *args, sun_dir_earth_body=self.earth_sun_dir_body(sl), earth_sun_scale=self.earth_sun_scale(sl),
+            seed=o.seed, epoch_offset=start, direct_samples=o.direct_samples, albedo_samples=o.albedo_samples,
             rel_se_direct=o.rel_se_direct, rel_se_albedo=o.rel_se_albedo, progress=None)
         plain = np.full((stop - start, len(self.config.diodes), 3), np.nan)
         pick = np.flatnonzero(plain_check_epochs(o.seed, len(self.epochs))[sl])

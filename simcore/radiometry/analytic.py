@@ -385,7 +385,10 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         weights = ~((along > 0) & (miss2 < radius_m ** 2))
         weights = np.where(weights.any(axis=0), weights, True).astype(float)   # umbra by points: plain mean
     partial_earth = (weights != weights[:1]).any(axis=0) if len(dirs) > 1 else np.zeros(weights.shape[1], bool)
-    weights = weights / weights.sum(axis=0)
+    # E_sun is the irradiance normal to the Sun's centre, int L cos(alpha) dOmega over the disc: the
+    # responses' plain mean over the disc points carries their mean cos(alpha) ~ 1 - a^2/4, divided out.
+    mean_cos_alpha = float(np.mean(1.0 / np.sqrt(1.0 + np.sum(offsets ** 2, axis=1))))
+    weights = weights / weights.sum(axis=0) / mean_cos_alpha
     resp = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2)   # (M, N, K)
     kink = np.zeros(resp.shape[1:], bool)
     if len(dirs) > 1 and refine_rings > rings:
