@@ -12,7 +12,7 @@ import xarray as xr
 
 SUNSIM = [sys.executable, "-m", "simcore.cli"]
 # A short sunlit stretch (the default start is in eclipse), few samples: seconds per chunk.
-SMALL = ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "24", "--chunk", "4", "--samples", "64", "16"]
+SMALL = ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "24", "--chunk", "4", "--samples", "64", "64"]
 
 
 def _sunsim(args, **kw):

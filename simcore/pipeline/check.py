@@ -31,13 +31,13 @@ n samples all miss a part worth more than this is below alpha).
    distribution);
 2. bias, per diode: the same over each diode's epochs (a wrong aperture or a
    diode-specific shadow), Bonferroni over the diodes;
-3. spread: ``S = sum (d^2 - v) / sqrt(sum (d^2 - v)^2)`` is N(0, 1) when the
-   standard errors are right (``E d^2 = E v``): too small or too large errors,
-   a mirrored map, a rotated attitude all move it. The pooled z spread
-   ``sqrt(sum d^2 / sum v)`` is reported beside it;
-4. tails: the count of |z| > 4, with z the normal score of
-   ``t = d / sqrt(v)`` under Student's t with the standard error's effective
-   degrees of freedom (Satterthwaite), against Binomial(n, 6.33e-5).
+3. spread: with z the normal score of ``t = d / sqrt(v)`` under Student's t with
+   the standard error's effective degrees of freedom (Satterthwaite), half of
+   the z lie within +-0.6745 when the standard errors are right: the count
+   inside is Binomial(n, 1/2), exactly, whatever a few heavy tails do. Errors
+   20 % too small or too large, a mirrored map, a rotated attitude all move
+   it. The pooled z spread ``sqrt(sum d^2 / sum v)`` is reported beside it;
+4. tails: the count of |z| > 4 against Binomial(n, 6.33e-5).
 
 The run's false-alarm rate is ``ALPHA_RUN = 1e-3``, split equally over the
 3 x 4 families (Bonferroni; the families are not independent, so the true rate
@@ -53,6 +53,7 @@ ALPHA_RUN = 1e-3            # false-alarm rate of the whole check, per run
 COMPONENTS = ("direct", "direct_plain", "albedo")
 FAMILIES = ("bias", "bias_per_diode", "spread", "tails")
 Z_TAIL = 4.0
+Z_QUARTILE = float(stats.norm.isf(0.25))            # 0.6745: half of N(0, 1) lies within
 P_TAIL = float(2.0 * stats.norm.sf(Z_TAIL))        # 6.33e-5: P(|z| > 4) for z ~ N(0, 1)
 EXACT_REL_TOL = 1e-5        # exact values (zero standard error): float32 arithmetic, of E_sun cos(incidence)
 EXACT_ABS_TOL_W_M2 = 1e-9   # values this close are equal (e.g. 1e-14 against an exact 0)
@@ -122,14 +123,14 @@ def _component_tests(name, diff, var, dof, diode, n_diodes, alpha):
                       p_value=float(min(1.0, len(live) * 2 * stats.norm.sf(abs(worst[0])))),
                       passed=abs(worst[0]) <= thr_k, note=f"worst diode {worst[1]}",
                       per_diode={int(k): float(x) for k, x in zip(live, per)}))
-    u = diff * diff - var
-    su2 = float((u * u).sum())
-    s = float(u.sum() / math.sqrt(su2)) if su2 > 0 else 0.0
-    pooled = math.sqrt(float((diff * diff).sum()) / sv) if sv > 0 else float("nan")
-    tests.append(dict(component=name, test="spread", n=n, statistic=s, threshold=thr,
-                      p_value=float(2 * stats.norm.sf(abs(s))), passed=abs(s) <= thr,
-                      note=f"pooled z spread {pooled:.4f}"))
     z = normal_scores(diff, var, dof)
+    inner = int(np.count_nonzero(np.abs(z) < Z_QUARTILE))
+    p_spread = min(1.0, 2.0 * min(binomial_tail(inner, n, 0.5), binomial_tail(n - inner, n, 0.5)))
+    pooled = math.sqrt(float((diff * diff).sum()) / sv) if sv > 0 else float("nan")
+    tests.append(dict(component=name, test="spread", n=n, statistic=inner / n, threshold=None, p_value=p_spread,
+                      passed=p_spread >= alpha,
+                      note=f"share of |z| < {Z_QUARTILE:.4f}: {inner / n:.4f} (N(0, 1): 0.5); median |z| "
+                           f"{float(np.median(np.abs(z))):.4f} (0.6745); pooled z spread {pooled:.4f}"))
     k_out = int(np.count_nonzero(np.abs(z) > Z_TAIL))
     p_tail = binomial_tail(k_out, n, P_TAIL)
     tests.append(dict(component=name, test="tails", n=n, statistic=k_out, threshold=None, p_value=p_tail,
@@ -194,8 +195,10 @@ def describe(report):
              f"per test family)"]
     for t in report["tests"]:
         stat = t["statistic"]
-        if t["test"] in ("bias", "bias_per_diode", "spread") and stat is not None:
+        if t["test"] in ("bias", "bias_per_diode") and stat is not None:
             s = f"|{stat:+.3f}| <= {t['threshold']:.3f}"
+        elif t["test"] == "spread" and stat is not None:
+            s = f"p = {t['p_value']:.3g} >= {report['alpha_per_test_family']:.2g}"
         elif t["test"] == "tails" and stat is not None:
             s = f"P(>= {stat}) = {t['p_value']:.3g} >= {report['alpha_per_test_family']:.2g}"
         elif t["test"] == "exact":

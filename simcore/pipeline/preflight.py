@@ -25,6 +25,11 @@ TLE_AGE_WARN_DAYS = 30.0
 SGP4_KM_PER_DAY = (1.0, 3.0)
 
 
+# Fewest samples per diode-epoch a run may ask for: with 16 direct and 4 albedo samples a 10-minute run's
+# standard errors fail the check's spread and tails tests (few strata carry the variance); from 64 they
+# pass (tests/test_check_power.py).
+MIN_SAMPLES = 64
+
 def _positive(value, option, what="a positive number"):
     if value is None or not (isinstance(value, (int, float, np.number)) and math.isfinite(value) and value > 0):
         raise InvalidInputError(f"{option} must be {what}, got {value}")
@@ -56,11 +61,13 @@ def check_numbers(opts):
                                     f"(e.g. 0.002 0.01), got {value:g}")
     if opts.rel_se_direct is None or opts.rel_se_albedo is None:
         m = math.isqrt(max(int(opts.direct_samples), 0) // 4)
-        if int(opts.direct_samples) != opts.direct_samples or m < 2 or 4 * m * m != opts.direct_samples:
-            raise InvalidInputError(f"--samples DIRECT must be 4 m^2 for a whole m >= 2 (16, 64, 256, 1024, ...), "
-                                    f"got {opts.direct_samples}")
-        if int(opts.albedo_samples) != opts.albedo_samples or opts.albedo_samples < 4 or opts.albedo_samples % 2:
-            raise InvalidInputError(f"--samples ALBEDO must be an even number >= 4, got {opts.albedo_samples}")
+        if int(opts.direct_samples) != opts.direct_samples or m < 4 or 4 * m * m != opts.direct_samples:
+            raise InvalidInputError(f"--samples DIRECT must be 4 m^2 for a whole m >= 4 (64, 256, 1024, ...: below "
+                                    f"{MIN_SAMPLES} the standard errors are not reliable), got {opts.direct_samples}")
+        if (int(opts.albedo_samples) != opts.albedo_samples or opts.albedo_samples < MIN_SAMPLES
+                or opts.albedo_samples % 2):
+            raise InvalidInputError(f"--samples ALBEDO must be an even number >= {MIN_SAMPLES} (below that the "
+                                    f"standard errors are not reliable), got {opts.albedo_samples}")
     if int(opts.seed) != opts.seed or not 0 <= int(opts.seed) <= MAX_SEED:
         raise InvalidInputError(f"--seed must be a whole number from 0 to 2^64-1 ({MAX_SEED}), got {opts.seed}")
     if int(opts.chunk_epochs) != opts.chunk_epochs or opts.chunk_epochs < 1:
