@@ -4,7 +4,7 @@ One ``sunsim run`` of 24 h at 1 s (86400 epochs, the default configuration tilt2
 orbit, attitude and map) under the thesis' conditions: its dead diode 0 (``--dead 0``) and its constant
 Sun of 1366.1 W/m^2 (``--solar-flux thesis``), the settings of thesis sec. 4.3 / SPEC sec. 7. On this day:
 
-- ``sunsim validate`` exits 0 (the renderer agrees with the analytic model on every epoch);
+- ``sunsim validate`` exits 0 (the analytic check of the whole day passes);
 - the sunlit share of the day equals the closed-form eclipse fraction of a circular orbit;
 - the sensor chain and the thesis' estimators reproduce the thesis' headline claims for a FOV-70
   configuration (SPEC sec. 7, thesis sec. 4.3 and chapter 5).
