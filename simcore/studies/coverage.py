@@ -30,10 +30,10 @@ its area (tie-free, and exactly the red lines of fig. 3.7 by symmetry; area
 fractions from nested HEALPix sub-pixels down to nside 32768, each known to
 +-0.0008, every decision but the symmetric ties at least 0.0024 from 1/2)
 reproduces figs. 3.7 and 3.9-3.13 but gives fig. 3.8 yellow 0.0674 against
-the caption's 0.0667: the HEALPix pixels at
-|z| = 2/3 (the polar-cap boundary) have centres 0.21 deg inside a tilt-20
-cone but only 41.6 % of their area inside it, and the thesis, counting
-centres, coloured them as seen.
+the caption's 0.0667: the HEALPix pixels at |z| = 2/3 (the polar-cap
+boundary) have centres 0.21 deg inside a tilt-20 cone but only 41.6 % of
+their area inside it, and the thesis, counting centres, coloured them as
+seen.
 """
 
 import healpy as hp
