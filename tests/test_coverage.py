@@ -47,7 +47,9 @@ def _caption_margins_deg():
         m = 0.5 * (lo + hi)
         ok = all(tuple(round(float(np.mean(c)), 4) for c in (n <= 2, n == 3, n >= 4)) == THESIS_FRACTIONS[name]
                  for name, d in depth.items() for n in [np.sum(d > m, axis=1)])
-        if ok:
+        if ok and good and good[-1][1] == lo:
+            good[-1] = (good[-1][0], hi)   # a depth that changes no class splits nothing
+        elif ok:
             good.append((lo, hi))
     assert len(good) == 1, f"the captions allow {len(good)} separate margin intervals: {good}"
     return good[0]
