@@ -139,6 +139,11 @@ def test_numbers_from_a_failed_check_are_marked():
     for line in text.splitlines():
         if line.startswith("| tilt25_fov70 |"):
             assert "check FAILED" not in line
+    # a figure derived from several runs (the discussion's FOV-75 row) is marked when one of them failed
+    row = next(line for line in text.splitlines() if line.startswith("| Albedo-Sun, FOV 75"))
+    assert "check FAILED" in row
+    row = next(line for line in text.splitlines() if line.startswith("| Sun-Albedo-Sun from Albedo-Sun:"))
+    assert "check FAILED" not in row            # FOV-70 layouts only
     clean, _ = render_page(synthetic_results())
     assert "check FAILED" not in clean
 

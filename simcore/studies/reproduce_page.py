@@ -123,8 +123,9 @@ def thesis_orbits(results):
     return sorted({int(THESIS["orbits_from_s"][0] // period), int(THESIS["orbits_to_s"][0] // period)})
 
 
-def verdict_below(F, value_text, value, bound_key, what=""):
-    """Return the verdict words for a thesis claim 'below the bound': holds / at the bound / does not hold."""
+def verdict_below(F, value_text, value, bound_key, what="", runs=()):
+    """Return the verdict words for a thesis claim 'below the bound': holds / at the bound / does not hold
+    (``runs``: the runs the value comes from, for the failed-check mark)."""
     bound = THESIS[bound_key][0]
     if not _finite(value):
         return "not in this span"
@@ -133,9 +134,9 @@ def verdict_below(F, value_text, value, bound_key, what=""):
     excess = value - bound
     src = f"value {value_text} minus thesis {bound_key}"
     if value <= bound * (1 + READING_TOLERANCE):
-        return (f"at the bound{what} ({F.num(excess, 'derived: ' + src)} deg above, within the "
+        return (f"at the bound{what} ({F.num(excess, 'derived: ' + src, runs=runs)} deg above, within the "
                 f"{F.num(100 * READING_TOLERANCE, 'stated convention READING_TOLERANCE', '{:g}')} % read off a figure)")
-    return f"does not hold{what} ({F.num(excess, 'derived: ' + src)} deg above)"
+    return f"does not hold{what} ({F.num(excess, 'derived: ' + src, runs=runs)} deg above)"
 
 
 def _agrees(value, bound):
@@ -402,10 +403,11 @@ def discussion(F, results):
                      f"azimuth peak {F.val('configs.tilt0_fov90.pinv.azimuth_mean_peak_deg')} deg (pinv, the thesis' "
                      f"selection), {F.val('variants.pinv_drops_zero_readings.configs.tilt0_fov90.pinv.azimuth_mean_peak_deg', runs=['tilt0_fov90'])} "
                      f"deg when zero readings are dropped, {F.val('configs.tilt0_fov90.wls.azimuth_mean_peak_deg')} deg (WLS)",
-                     verdict_below(F, "configs.tilt0_fov90.pinv.azimuth_mean_peak_deg", az, "pinv_base_azimuth_deg")
+                     verdict_below(F, "configs.tilt0_fov90.pinv.azimuth_mean_peak_deg", az, "pinv_base_azimuth_deg",
+                                   runs=["tilt0_fov90"])
                      + ("" if not azv else "; with zero readings dropped: " + verdict_below(
                          F, "variants.pinv_drops_zero_readings...azimuth_mean_peak_deg",
-                         azv.get("pinv", {}).get("azimuth_mean_peak_deg"), "pinv_base_azimuth_deg"))])
+                         azv.get("pinv", {}).get("azimuth_mean_peak_deg"), "pinv_base_azimuth_deg", runs=["tilt0_fov90"]))])
     if fov70:
         shares = [R[c]["pinv"]["share_below_5_deg"] for c in fov70]
         rows.append([f"FOV 70: error below {F.thesis('fov70_below_deg')} deg for most of the sunlit orbit",
@@ -454,14 +456,15 @@ def discussion(F, results):
             w_text, w_val, _ = _worst(F, results, which, est)
             v1 = max((w for w in worst1 if _finite(w[0])), default=(None, None, None))
             v2 = max((w for w in worst2 if _finite(w[0])), default=(None, None, None))
-            second_words = verdict_below(F, f"configs.{v2[1]}.{est}.zenith_mean_peak_per_orbit_deg", v2[0], k2) \
+            second_words = verdict_below(F, f"configs.{v2[1]}.{est}.zenith_mean_peak_per_orbit_deg", v2[0], k2, runs=which) \
                 if k2 != "saswls_second_deg" else (
                     "peak " + ("about" if _finite(v2[0]) and abs(v2[0] - THESIS[k2][0]) <= THESIS[k2][0] * READING_TOLERANCE
                                else "not about") + " the thesis' value" if _finite(v2[0]) else "not in this span")
             rows.append([f"{label}: first orbit below {F.thesis(k1)} deg, second "
                          + ("peak about " if k2 == "saswls_second_deg" else "below ") + f"{F.thesis(k2)} deg",
                          "thesis' orbits first / second: " + "; ".join(cells) + f"; whole span at most {w_text} deg",
-                         "first orbit: " + verdict_below(F, f"configs.{v1[1]}.{est}.zenith_mean_peak_per_orbit_deg", v1[0], k1)
+                         "first orbit: " + verdict_below(F, f"configs.{v1[1]}.{est}.zenith_mean_peak_per_orbit_deg", v1[0], k1,
+                                                         runs=which)
                          + "; second: " + second_words])
     if fov75:
         rows.append(_fov75_row(F, results, fov75))
@@ -516,7 +519,8 @@ def _fov75_row(F, results, fov75):
     R = results["configs"]
     w_text, w_val, _ = _worst(F, results, fov75, "albedo_sun")
     claim = f"Albedo-Sun, FOV 75: peak below {F.thesis('as75_deg')} deg"
-    verdict = verdict_below(F, "max over FOV-75 configs of albedo_sun zenith_mean_peak_deg", w_val, "as75_deg")
+    verdict = verdict_below(F, "max over FOV-75 configs of albedo_sun zenith_mean_peak_deg", w_val, "as75_deg",
+                            runs=fov75)
     am = results.get("aperture_models", {})
     models = am.get("labels", {})
     ours = f"whole span at most {w_text} deg (rendered)"
