@@ -438,10 +438,12 @@ def cmd_reproduce(args):
     res = reproduce(args.folder, page_folder=args.page, log=log, noise=True,
                     allow_failed_checks=args.allow_failed_checks, **plan)
     page = args.page or f"{args.folder}/page"
+    failed = [c for c, r in res["configs"].items() if not r["check_pass"]]
     if args.json:
-        print(json.dumps({"page": page, "configs": list(res["configs"])}))
+        print(json.dumps({"page": page, "configs": list(res["configs"]), "checks_failed": failed}))
     else:
-        print(f"results page: {page}/README.md ({len(res['configs'])} configurations, span {args.span})")
+        print(f"results page: {page}/README.md ({len(res['configs'])} configurations, span {args.span})"
+              + (f"; check FAILED, marked on the page: {', '.join(failed)}" if failed else ""))
     return 0
 
 

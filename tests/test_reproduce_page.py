@@ -232,3 +232,25 @@ def test_reproduce_refuses_failed_checks_then_marks_them(tiny_study, capsys):
     assert len(rows) >= 4
     assert all("check FAILED" in line for line in rows[1:])
     assert not any("check FAILED" in line for line in page.splitlines() if line.startswith("| tilt0_fov90 |"))
+
+
+def test_a_run_rendered_now_with_a_failed_check_stops_before_the_page(tmp_path, monkeypatch):
+    # The renderer is replaced by one that writes a run file whose check failed (or that has none):
+    # reproduce() must stop after rendering, before any page file is written.
+    import xarray as xr
+    from simcore.studies import reproduce as rep
+    monkeypatch.setattr(rep, "CONFIGS", ("tilt0_fov90", "tilt20_fov70"))
+    written = []
+
+    def fake_execute(opts, log=None):
+        attrs = {"check": json.dumps({"pass": False, "z": 9.0})} if "tilt20" in opts.output else {}
+        xr.Dataset(attrs=attrs).to_netcdf(opts.output, engine="h5netcdf")
+        written.append(opts.output)
+    monkeypatch.setattr(rep, "execute", fake_execute)
+    with pytest.raises(rep.FailedCheckError) as exc:
+        rep.reproduce(str(tmp_path / "runs"), span="short", page_folder=str(tmp_path / "page"), log=lambda m: None,
+                      second_spin=None, cross_map=False)
+    assert len(written) == 2
+    msg = str(exc.value)
+    assert "tilt20_fov70" in msg and "tilt0_fov90" in msg and "--allow-failed-checks" in msg and "\n" not in msg
+    assert not (tmp_path / "page").exists()
