@@ -102,7 +102,14 @@ def read_check(path):
     except Exception as exc:  # h5py/netCDF raise many types for a corrupt file
         raise InvalidInputError(f"{path} is not a readable netCDF run file ({type(exc).__name__}: {exc}); "
                                 "delete it so that 'sunsim reproduce' renders it again") from None
-    return json.loads(raw) if raw else {}
+    try:
+        check = json.loads(raw) if raw else {}
+    except json.JSONDecodeError:
+        check = None
+    if not isinstance(check, dict):
+        raise InvalidInputError(f"{path}: its 'check' attribute is not a JSON object; was it written by 'sunsim run'? "
+                                "Delete it so that 'sunsim reproduce' renders it again")
+    return check
 
 
 def check_passed(check):
