@@ -27,6 +27,7 @@ and it is far above the rounding noise of det (~1e-16 trace^3).
 import numpy as np
 
 RANK_RTOL = 1e-9   # det(G) / trace(G)^3 of the selected normals' Gram matrix below this = rank < 3
+ZERO_THRESHOLD_W_M2 = 1e-9   # |E_S0 cos(FOV)| below this is FOV = 90 deg (cos 90 deg rounds to 6e-17, not 0)
 
 
 def _inputs(e_p, normals, fov_deg, e_s0, live):
@@ -88,23 +89,31 @@ def _unit(x, ok):
     return s, ok
 
 
-def _sun_wls(e_ps_all, h, threshold, usable, weighted=True):
-    """Select the diodes with E_ps >= threshold and solve eq. 4.27 (unweighted) or 4.30 (W = diag(E_ps))."""
-    sel = usable & (e_ps_all >= threshold) & (e_ps_all > 0)
+def _sun_wls(e_ps_all, h, threshold, usable, weighted=True, keep_zero_readings=False):
+    """Select the diodes with E_ps >= threshold and solve eq. 4.27 (unweighted) or 4.30 (W = diag(E_ps)).
+
+    Zero readings are left out unless ``keep_zero_readings`` (then a threshold of E_S0 cos(90 deg),
+    zero up to rounding, counts as 0: every reading E_ps >= 0 is selected)."""
+    if keep_zero_readings:
+        sel = usable & (e_ps_all >= (0.0 if abs(threshold) < ZERO_THRESHOLD_W_M2 else threshold))
+    else:
+        sel = usable & (e_ps_all >= threshold) & (e_ps_all > 0)
     w = np.where(sel, e_ps_all if weighted else 1.0, 0.0)
     return weighted_lsq(h, e_ps_all, w)
 
 
-def pinv_estimate(e_p, normals, *, fov_deg, e_s0, live=None):
+def pinv_estimate(e_p, normals, *, fov_deg, e_s0, live=None, keep_zero_readings=False):
     """Return the pseudoinverse Sun-vector estimate s_hat (N, 3), body frame, unit, and valid (N,) (eq. 4.27).
 
     Diodes with E_p >= E_S0 cos(FOV) "see the Sun" (sec. 4.3.1); with H_s their normals and
-    E_ps their readings, s = (H_s^T H_s)^-1 H_s^T E_ps, normalised. For FOV = 90 deg the
-    threshold is E_S0 cos(90 deg) ~ 1e-14 W/m^2: every diode reading more than zero is used,
-    which is the thesis' "pseudoinverse without choosing photodiodes" for the baseline.
+    E_ps their readings, s = (H_s^T H_s)^-1 H_s^T E_ps, normalised. Zero readings are left out
+    by default. With ``keep_zero_readings=True`` the selection is E_p >= E_S0 cos(FOV) as
+    printed: for FOV = 90 deg that is every diode with E_p >= 0, zeros included, the thesis'
+    "pseudo inverse without choosing photodiodes" for the baseline (secs. 4.3.1, 5.1).
+    At FOV < 90 deg the threshold is above 0 and the two selections are the same.
     """
     e, h, thr, usable = _inputs(e_p, normals, fov_deg, e_s0, live)
-    return _unit(*_sun_wls(e, h, thr, usable, weighted=False))
+    return _unit(*_sun_wls(e, h, thr, usable, weighted=False, keep_zero_readings=keep_zero_readings))
 
 
 def wls_estimate(e_p, normals, *, fov_deg, e_s0, live=None):

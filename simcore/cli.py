@@ -428,19 +428,24 @@ def cmd_sweep(args):
 
 def cmd_reproduce(args):
     """The thesis' chapter-4 study on rendered irradiance: renders what is missing, writes the results page."""
-    from simcore.studies.reproduce import reproduce
+    from simcore.studies.reproduce import refuse_existing_failed, reproduce
     log = (lambda m: print(m, file=sys.stderr))
+    plan = {"span": args.span, "render": not args.no_render, "cross_map": args.span != "short",
+            "second_spin": None if args.span == "short" else args.second_spin}
+    if not args.allow_failed_checks:      # before any folder is made or anything rendered
+        refuse_existing_failed(args.folder, **plan)
     _output_folder(args.folder, "--folder")
     if args.page:
         _output_folder(args.page, "--page")
-    res = reproduce(args.folder, span=args.span, page_folder=args.page, log=log, render=not args.no_render,
-                    second_spin=None if args.span == "short" else args.second_spin,
-                    cross_map=args.span != "short", noise=True)
+    res = reproduce(args.folder, page_folder=args.page, log=log, noise=True,
+                    allow_failed_checks=args.allow_failed_checks, **plan)
     page = args.page or f"{args.folder}/page"
+    failed = [c for c, r in res["configs"].items() if not r["check_pass"]]
     if args.json:
-        print(json.dumps({"page": page, "configs": list(res["configs"])}))
+        print(json.dumps({"page": page, "configs": list(res["configs"]), "checks_failed": failed}))
     else:
-        print(f"results page: {page}/README.md ({len(res['configs'])} configurations, span {args.span})")
+        print(f"results page: {page}/README.md ({len(res['configs'])} configurations, span {args.span})"
+              + (f"; check FAILED, marked on the page: {', '.join(failed)}" if failed else ""))
     return 0
 
 
@@ -604,6 +609,9 @@ def build_parser():
     rp.add_argument("--second-spin", type=float, default=0.5, metavar="DEG_S",
                     help="second tumble rate, rendered over the two orbits (default %(default)s)")
     rp.add_argument("--no-render", action="store_true", help="evaluate only the run files already there")
+    rp.add_argument("--allow-failed-checks", action="store_true",
+                    help="use runs whose analytic check failed (refused by default) and mark their numbers "
+                         "'check FAILED' on the page")
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_reproduce)
 

@@ -242,3 +242,28 @@ def test_misuse_raises():
         sun_albedo_sun_estimate(np.zeros((3, 6)), BASELINE, fov_deg=70, e_s0=E_S0, init="lsq")
     with pytest.raises(ValueError, match="weighting"):
         albedo_sun_estimate(np.zeros((3, 6)), BASELINE, fov_deg=70, e_s0=E_S0, albedo_weighting="sqrt")
+
+
+def test_pinv_keep_zero_readings_on_the_cube():
+    # The thesis' baseline pseudoinverse "without choosing photodiodes" (secs. 4.3.1, 5.1): at FOV 90 deg
+    # the threshold E_S0 cos(90 deg) is 0, so every diode with E_p >= 0 takes part, zeros included.
+    # Cube +x, +y, -x, -y, +z, -z; readings: +x E1, +y E2, -x 0, -y beta (Earth light only), +z E3, -z 0.
+    # Closed forms of eq. 4.27, (H^T H)^-1 H^T E:
+    #   zeros dropped (rows +x, +y, -y, +z): H^T H = diag(1, 2, 1) -> x = (E1, (E2 - beta)/2, E3);
+    #   zeros kept (all six rows):           H^T H = 2 I           -> x = (E1, E2 - beta, E3)/2.
+    h = np.array([[1.0, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+    e1, e2, e3, beta = 120.0, 80.0, 60.0, 30.0
+    e_p = np.array([[e1, e2, 0.0, beta, e3, 0.0]])
+    unit = lambda v: np.asarray(v) / np.linalg.norm(v)
+    s_drop, ok_drop = pinv_estimate(e_p, h, fov_deg=90, e_s0=E_S0)
+    s_keep, ok_keep = pinv_estimate(e_p, h, fov_deg=90, e_s0=E_S0, keep_zero_readings=True)
+    assert ok_drop[0] and ok_keep[0]
+    np.testing.assert_allclose(s_drop[0], unit([e1, (e2 - beta) / 2, e3]), atol=1e-12)
+    np.testing.assert_allclose(s_keep[0], unit([e1, e2 - beta, e3]), atol=1e-12)
+    # below FOV 90 deg the threshold E_S0 cos(FOV) > 0 excludes zeros either way: the same estimate
+    h14 = tilted_normals(20)
+    e14 = direct_only(h14, random_dirs(500, seed=3), 70)
+    a, va = pinv_estimate(e14, h14, fov_deg=70, e_s0=E_S0)
+    b, vb = pinv_estimate(e14, h14, fov_deg=70, e_s0=E_S0, keep_zero_readings=True)
+    np.testing.assert_array_equal(va, vb)
+    np.testing.assert_array_equal(a[va], b[vb])

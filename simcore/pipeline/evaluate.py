@@ -19,13 +19,17 @@ def measure(irradiance_w_m2, *, diode="BPW34FS", dead=(), noise=False, seed=0, *
     return chain.measure(np.asarray(irradiance_w_m2, dtype=float))
 
 
-def run_estimators(e_p, normals, fov_deg, *, e_s0, live=None, which=None):
-    """Return {name: (s_hat (N, 3), valid (N,))} for the thesis' estimators (or ``which`` of them)."""
+def run_estimators(e_p, normals, fov_deg, *, e_s0, live=None, which=None, pinv_keep_zero_readings=False):
+    """Return {name: (s_hat (N, 3), valid (N,))} for the thesis' estimators (or ``which`` of them).
+
+    ``pinv_keep_zero_readings``: the pseudoinverse selects every E_p >= E_S0 cos(FOV), zeros included
+    (at FOV 90 deg the thesis' "without choosing photodiodes"; :func:`estimators.pinv_estimate`)."""
     out = {}
     for name in THESIS_ESTIMATORS:
         if which is not None and name not in which:
             continue
-        out[name] = ESTIMATORS[name](e_p, normals, fov_deg=fov_deg, e_s0=e_s0, live=live)
+        kw = {"keep_zero_readings": True} if name == "pinv" and pinv_keep_zero_readings else {}
+        out[name] = ESTIMATORS[name](e_p, normals, fov_deg=fov_deg, e_s0=e_s0, live=live, **kw)
     return out
 
 
@@ -63,19 +67,27 @@ def error_table(errs, sunlit, orbit_index=None):
     return rows
 
 
-def run_errors(ds, *, diode="BPW34FS", noise=False, seed=0, which=None, smart_select=False):
+def run_errors(ds, *, diode="BPW34FS", noise=False, seed=0, which=None, smart_select=False,
+               announce_dead=True, pinv_keep_zero_readings=False, irradiance_w_m2=None):
     """Return (errs, sunlit, extras) for a run Dataset (:mod:`simcore.pipeline.run`): rendered direct + albedo
     through the sensor chain into the thesis' estimators (plus ``smart_select`` for opposite diode pairs),
-    errors against the true Sun vector (:func:`errors`); ``sunlit`` (N,) is the full-Sun mask."""
-    irr = ds["irradiance"].sum("component").values
+    errors against the true Sun vector (:func:`errors`); ``sunlit`` (N,) is the full-Sun mask.
+
+    ``announce_dead``: the estimators are told which diodes are dead (``live``) and leave them out;
+    False is the thesis' way (a dead diode reads 0, unannounced). ``pinv_keep_zero_readings``: see
+    :func:`run_estimators`. ``irradiance_w_m2`` (N, K): evaluate this irradiance instead of the
+    rendered one (e.g. an analytic model on the run's geometry)."""
+    irr = ds["irradiance"].sum("component").values if irradiance_w_m2 is None else np.asarray(irradiance_w_m2)
     live = ~ds["dead"].values.astype(bool)
     normals = ds["normal_body"].values
     fov = float(np.min(ds["fov_deg"].values)) if "fov_deg" in ds else 90.0
     e_s0 = DIODES[diode].e_s0_w_m2
     e_p = measure(irr, diode=diode, dead=np.flatnonzero(~live), noise=noise, seed=seed)
-    est = run_estimators(e_p, normals, fov, e_s0=e_s0, live=live, which=which)
+    told = live if announce_dead else None
+    est = run_estimators(e_p, normals, fov, e_s0=e_s0, live=told, which=which,
+                         pinv_keep_zero_readings=pinv_keep_zero_readings)
     if smart_select:
-        est["smart_select"] = ESTIMATORS["smart_select"](e_p, normals, fov_deg=fov, e_s0=e_s0, live=live)
+        est["smart_select"] = ESTIMATORS["smart_select"](e_p, normals, fov_deg=fov, e_s0=e_s0, live=told)
     R = quat_to_matrix(ds["q_gcrs_from_body"].values)
     sunlit = eclipse.sunlit(ds["illumination"].values)
     return errors(est, ds["sun_dir_body"].values, R), sunlit, {"e_p": e_p, "estimates": est}
