@@ -107,7 +107,7 @@ def _component_tests(name, diff, var, dof, diode, n_diodes, alpha):
     b = float(diff.sum() / math.sqrt(sv)) if sv > 0 else 0.0
     tests.append(dict(component=name, test="bias", n=n, statistic=b, threshold=thr,
                       p_value=float(2 * stats.norm.sf(abs(b))), passed=abs(b) <= thr,
-                      note=f"mean difference {diff.mean():+.4g} W/m^2, mean z {b / math.sqrt(n):+.4f}"))
+                      note=f"mean difference {diff.mean():+.4g} W/m^2, {b / math.sqrt(n):+.4f} sigma per diode-epoch"))
     per = []
     worst = (0.0, -1)
     live = [k for k in range(n_diodes) if np.any(diode == k)]
