@@ -41,7 +41,8 @@ def main_bench(argv=None):
         for start, stop in chunk_ranges(len(g), opts.chunk_epochs):
             sl = slice(start, stop)
             st.renderer.render(g.sun_dir_body[sl], g.earth_center_body_m[sl], g.R_ecef_from_body[sl],
-                               st.sun_scale(sl), seed=opts.seed, epoch_offset=start,
+                               st.sun_scale(sl), sun_dir_earth_body=st.earth_sun_dir_body(sl),
+                               earth_sun_scale=st.earth_sun_scale(sl), seed=opts.seed, epoch_offset=start,
                                direct_samples=opts.direct_samples, albedo_samples=opts.albedo_samples,
                                rel_se_direct=opts.rel_se_direct, rel_se_albedo=opts.rel_se_albedo)
         t_render = time.perf_counter() - t1

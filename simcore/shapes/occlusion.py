@@ -21,6 +21,8 @@ renderer sees them.
 """
 import numpy as np
 
+from simcore.shapes.aperture import lit_rectangle
+
 
 
 def box_hit(origins, dirs, half_m):
@@ -173,13 +175,16 @@ def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, hal
     todo = below & front if only is None else below & front & only
     if not todo.any():
         return vis
-    own = np.stack([apertures[k].lit_fraction(d @ np.asarray(frames[k]).T) for k in range(K)], axis=1)
-    vis[todo & (own <= 0)] = np.nan
-    todo &= own > 0
     n_idx, k_idx = np.nonzero(todo)
     params = np.array([[a.diode_x_m / 2, a.diode_y_m / 2, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
                        for a in apertures])
     frames = np.asarray(frames, float)
+    dd = np.einsum("tij,tj->ti", frames[k_idx], d[n_idx])       # the pairs' directions in diode frames
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        own = lit_rectangle(*params[k_idx].T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
+    dark = own <= 0
+    vis[n_idx[dark], k_idx[dark]] = np.nan
+    n_idx, k_idx, own = n_idx[~dark], k_idx[~dark], own[~dark]
     vis[n_idx, k_idx] = lit_fractions_with_box(params[k_idx], frames[k_idx], np.asarray(positions_m, float)[k_idx],
-                                               d[n_idx], half_m) / own[n_idx, k_idx]
+                                               d[n_idx], half_m) / own
     return vis

@@ -95,21 +95,11 @@ class FailedCheckError(InvalidInputError):
 
 
 def read_check(path):
-    """Return the analytic check of a run file: its ``check`` attribute as a dict (``{}`` when it has none)."""
-    try:
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
-            raw = ds.attrs.get("check")
-    except Exception as exc:  # h5py/netCDF raise many types for a corrupt file
-        raise InvalidInputError(f"{path} is not a readable netCDF run file ({type(exc).__name__}: {exc}); "
-                                "delete it so that 'sunsim reproduce' renders it again") from None
-    try:
-        check = json.loads(raw) if raw else {}
-    except json.JSONDecodeError:
-        check = None
-    if not isinstance(check, dict):
-        raise InvalidInputError(f"{path}: its 'check' attribute is not a JSON object; was it written by 'sunsim run'? "
-                                "Delete it so that 'sunsim reproduce' renders it again")
-    return check
+    """Return the analytic check of a run file as this version of sunsim makes it from the file's arrays
+    (:func:`simcore.pipeline.run.check_run`; the ``check`` attribute the file was written with may come
+    from an older check)."""
+    from simcore.pipeline.run import check_run, open_run
+    return check_run(open_run(path))[1]
 
 
 def check_passed(check):
