@@ -9,15 +9,16 @@ def test_one_full_orbit_passes_the_analytic_check(tmp_path):
     path, ds, _ = execute(RunOptions(output=str(tmp_path / "orbit.nc")), progress=False)
     assert ds.sizes["time"] == 5871 and ds.sizes["diode"] == 14      # one anomalistic period at 1 s
     flags, report = check_run(ds)
-    # Direct Sun: every diode-epoch within max(0.5 % of E_sun cos, 3 sigma) of the exact aperture + body
-    # model, up to what the standard errors predict by chance.
-    assert report["direct_checked"] > 80000
-    assert report["direct_outliers"] <= report["direct_outliers_expected_by_chance"] + 3
-    # Albedo: z-scores against the refined Bhanderi sum consistent with N(0, 1): mean |z| < 1 and under
-    # 0.3 % beyond 4 (for N(0, 1): 0.80 and 0.006 %), over diode-epochs above 1 W/m^2.
-    assert report["albedo_checked"] > 30000
-    assert report["albedo_mean_abs_z"] < 1.0 and report["albedo_share_abs_z_gt_4"] < 0.003
-    assert report["pass"]
+    # Every rendered value against the independent analytic model (aperture overlap + body shadow, the
+    # Bhanderi sum on the refined map) and, on an eighth of the epochs, a hint-free direct estimate: each of
+    # the check's tests (bias overall and per diode, spread, tails, exact values) passes at its stated
+    # false-alarm rate (1e-3 per run in all).
+    assert report["direct_checked"] > 80000 and report["albedo_checked"] > 30000
+    assert report["direct_plain_checked"] > 8000
+    assert {(t["component"], t["test"]) for t in report["tests"]} >= {
+        (c, f) for c in ("direct", "direct_plain", "albedo") for f in ("bias", "bias_per_diode", "spread")} | {
+        ("direct", "tails"), ("albedo", "tails")}
+    assert [t for t in report["tests"] if not t["passed"]] == []
     # It is a sunlit, albedo-rich orbit: the check compared real numbers.
     irr = ds["irradiance"].values
     assert irr[..., 0].max() > 1300 and np.median(irr[..., 1][irr[..., 1] > 0]) > 5

@@ -30,7 +30,7 @@ def _passes(components, e_sun, e_cos):
 
 
 def test_false_alarm_rate_is_at_most_the_stated_one():
-    # Size: 3000 runs with unbiased normal errors and right standard errors. Bonferroni over the 12 test
+    # Size: 3000 runs with unbiased normal errors and right standard errors. Bonferroni over the 11 test
     # families bounds the rate by ALPHA_RUN = 1e-3, so at most Binomial(3000, 1e-3) failures: P(>= 10)
     # = 1.1e-3 (scipy), the limit below; the test can fail only if the design's size is wrong.
     rng = np.random.default_rng(12)

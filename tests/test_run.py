@@ -12,7 +12,7 @@ import xarray as xr
 
 SUNSIM = [sys.executable, "-m", "simcore.cli"]
 # A short sunlit stretch (the default start is in eclipse), few samples: seconds per chunk.
-SMALL = ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "24", "--chunk", "4", "--samples", "64", "64"]
+SMALL = ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "24", "--chunk", "4", "--samples", "256", "256"]
 
 
 def _sunsim(args, **kw):
@@ -113,7 +113,7 @@ def test_a_north_first_map_renders_the_same_earth_as_south_first(tmp_path):
     np.savez(south, reflectivity=toms.values, lat_deg=toms.lat_deg, lon_deg=toms.lon_deg)
     np.savez(north, reflectivity=toms.values[::-1], lat_deg=toms.lat_deg[::-1], lon_deg=toms.lon_deg)
     # A sunlit span over the northern hemisphere's asymmetric albedo (2016-07-02 05:40 UTC).
-    base = ["run", "--start", "2016-07-02T05:40:00Z", "--duration", "12", "--samples", "256", "64"]
+    base = ["run", "--start", "2016-07-02T05:40:00Z", "--duration", "12", "--samples", "256", "256"]
     out = {}
     for name, path in (("south", south), ("north", north)):
         res = _sunsim(base + ["--map", str(path), "-o", str(tmp_path / f"{name}.nc")])
@@ -140,7 +140,7 @@ def test_default_solar_flux_is_the_measured_tsi_with_inverse_square_and_thesis_f
     # rendered direct irradiances differ by exactly that ratio, epoch by epoch.
     import pandas as pd
     from pvlib.solarposition import nrel_earthsun_distance
-    base = ["run", "--start", "2016-07-02T05:40:00Z", "--duration", "6", "--samples", "256", "64"]
+    base = ["run", "--start", "2016-07-02T05:40:00Z", "--duration", "6", "--samples", "256", "256"]
     assert _sunsim(base + ["-o", str(tmp_path / "phys.nc")]).returncode == 0
     assert _sunsim(base + ["--solar-flux", "thesis", "-o", str(tmp_path / "thesis.nc")]).returncode == 0
     with xr.open_dataset(tmp_path / "phys.nc") as p, xr.open_dataset(tmp_path / "thesis.nc") as t:

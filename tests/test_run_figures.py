@@ -16,7 +16,7 @@ SUNSIM = [sys.executable, "-m", "simcore.cli"]
 def run_file(tmp_path_factory):
     # 60 sunlit s of the default study, one dead diode, few samples.
     folder = tmp_path_factory.mktemp("fig")
-    r = subprocess.run(SUNSIM + ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "60", "--samples", "64", "64",
+    r = subprocess.run(SUNSIM + ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "60", "--samples", "256", "256",
                                  "--dead", "3", "-o", "r.nc"], cwd=folder, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     return folder / "r.nc"

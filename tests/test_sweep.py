@@ -9,7 +9,7 @@ from simcore.pipeline.sweep import sweep, sweep_points
 
 
 def test_sweep_of_eight_runs_on_two_local_workers(tmp_path):
-    base = RunOptions(duration_s=6, direct_samples=64, albedo_samples=64, rel_se_direct=None, rel_se_albedo=None,
+    base = RunOptions(duration_s=6, direct_samples=256, albedo_samples=256, rel_se_direct=None, rel_se_albedo=None,
                       chunk_epochs=3)
     args = (["tilt20_fov70", "tilt0_fov90"], ["2016-07-02T00:45:00Z", "2016-07-03T00:45:00Z"], [1.9, 0.5], [0])
     folder = str(tmp_path / "sw")

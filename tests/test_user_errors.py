@@ -16,7 +16,7 @@ import xarray as xr
 
 SUNSIM = [sys.executable, "-m", "simcore.cli"]
 # Four sunlit epochs (the default start is in eclipse), the smallest sample counts the renderer takes.
-TINY = ["--start", "2016-07-02T00:45:00Z", "--duration", "4", "--samples", "64", "64"]
+TINY = ["--start", "2016-07-02T00:45:00Z", "--duration", "4", "--samples", "256", "256"]
 
 
 # What a command-line user cannot type: a keyword argument (verify_checksum=False) or a call (quat_normalize()).
@@ -57,10 +57,10 @@ def _cuda_works():
 
 # ---- item 3 and 5: every argument checked before the output path is touched ------------------------------
 @pytest.mark.parametrize("bad, good, words", [
-    (["--samples", "0", "0"], ["--samples", "64", "64"], "--samples DIRECT must be 4 m^2"),
-    (["--samples", "-4", "-4"], ["--samples", "64", "64"], "--samples DIRECT must be 4 m^2"),
-    (["--samples", "64", "63"], ["--samples", "64", "64"], "--samples ALBEDO must be an even number"),
-    (["--samples", "16", "4"], ["--samples", "64", "64"], "below 64 the standard errors are not reliable"),
+    (["--samples", "0", "0"], ["--samples", "256", "256"], "--samples DIRECT must be 4 m^2"),
+    (["--samples", "-4", "-4"], ["--samples", "256", "256"], "--samples DIRECT must be 4 m^2"),
+    (["--samples", "256", "255"], ["--samples", "256", "256"], "--samples ALBEDO must be an even number"),
+    (["--samples", "16", "4"], ["--samples", "256", "256"], "below 256 the standard errors are not reliable"),
     (["--seed", str(2 ** 64)], ["--seed", str(2 ** 64 - 1)], "--seed must be a whole number from 0 to 2^64-1"),
     (["--seed", "-1"], ["--seed", "1"], "--seed must be a whole number from 0 to 2^64-1"),
     (["--config", "tilt20_fov7"], ["--config", "tilt20_fov70"], "did you mean"),
@@ -146,7 +146,7 @@ def test_an_uncreatable_figure_folder_is_one_line(tmp_path):
 
 def test_a_sweep_is_checked_before_any_worker_starts(tmp_path):
     base = ["sweep", "--starts", "2016-07-02T00:45:00Z", "--duration", "4", "--workers", "1", "--folder", "sw"]
-    _case(tmp_path, base + ["--samples", "0", "0"], base + ["--samples", "64", "64"], "--samples DIRECT must be 4 m^2")
+    _case(tmp_path, base + ["--samples", "0", "0"], base + ["--samples", "256", "256"], "--samples DIRECT must be 4 m^2")
     assert (tmp_path / "sw" / "sweep.nc").exists()
 
 
@@ -171,7 +171,7 @@ def test_a_start_far_from_the_tle_epoch_is_a_warning_with_the_sgp4_error(tmp_pat
     # line 1 columns 19-32): no warning, and the run file states the age.
     orbit = Orbit.default()
     assert tle_age_note(orbit, Epochs.from_any(["2016-07-02T00:00:00Z"])) is None
-    r = _sunsim(["run", "--start", "2016-09-30T00:45:00Z", "--duration", "4", "--samples", "64", "64",
+    r = _sunsim(["run", "--start", "2016-09-30T00:45:00Z", "--duration", "4", "--samples", "256", "256",
                  "-o", "late.nc"], tmp_path)
     assert r.returncode == 0, r.stderr
     # 2016-09-30T00:45Z - 2016-07-27T03:55:30.848Z = 64 d 20 h 49 min 29.152 s = 64.8677 days
@@ -184,7 +184,7 @@ def test_a_start_far_from_the_tle_epoch_is_a_warning_with_the_sgp4_error(tmp_pat
 def test_a_span_entirely_in_eclipse_says_no_sunlit_data(tmp_path):
     # 2016-07-02T00:00Z is in the Earth's umbra until 1263 s (sunsim summary's eclipse events; the
     # beta-angle 8.9 deg orbit spends 35.7 % in umbra).
-    r = _sunsim(["run", "--duration", "20", "--samples", "64", "64", "-o", "dark.nc"], tmp_path)
+    r = _sunsim(["run", "--duration", "20", "--samples", "256", "256", "-o", "dark.nc"], tmp_path)
     assert r.returncode == 0, r.stderr
     assert "analytic check: no sunlit data" in r.stdout and "PASS" not in r.stdout
     v = _sunsim(["validate", "dark.nc"], tmp_path)
@@ -210,7 +210,7 @@ def test_default_outputs_repeat_and_never_collide(tmp_path):
 
 
 # ---- item 3: resume with another --chunk; a crash in the final write -------------------------------------
-SMALL = ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "12", "--samples", "64", "64"]
+SMALL = ["run", "--start", "2016-07-02T00:45:00Z", "--duration", "12", "--samples", "256", "256"]
 
 
 def test_a_resume_with_another_chunk_size_renders_only_the_rest(tmp_path):

@@ -25,10 +25,11 @@ TLE_AGE_WARN_DAYS = 30.0
 SGP4_KM_PER_DAY = (1.0, 3.0)
 
 
-# Fewest samples per diode-epoch a run may ask for: with 16 direct and 4 albedo samples a 10-minute run's
-# standard errors fail the check's spread and tails tests (few strata carry the variance); from 64 they
-# pass (tests/test_check_power.py).
-MIN_SAMPLES = 64
+# Fewest samples per diode-epoch a run may ask for. Below, few strata carry the variance and the
+# standard errors are unreliable: with 16 direct and 4 albedo samples a 10-minute run fails the check's
+# spread and tails tests, and with 64 and 64 one 4-epoch run in 20 seeds fails its per-diode bias test
+# (5.1 sigma); with 256 and 256, 16 seeds of it all pass.
+MIN_SAMPLES = 256
 
 def _positive(value, option, what="a positive number"):
     if value is None or not (isinstance(value, (int, float, np.number)) and math.isfinite(value) and value > 0):
@@ -61,8 +62,8 @@ def check_numbers(opts):
                                     f"(e.g. 0.002 0.01), got {value:g}")
     if opts.rel_se_direct is None or opts.rel_se_albedo is None:
         m = math.isqrt(max(int(opts.direct_samples), 0) // 4)
-        if int(opts.direct_samples) != opts.direct_samples or m < 4 or 4 * m * m != opts.direct_samples:
-            raise InvalidInputError(f"--samples DIRECT must be 4 m^2 for a whole m >= 4 (64, 256, 1024, ...: below "
+        if int(opts.direct_samples) != opts.direct_samples or m < 8 or 4 * m * m != opts.direct_samples:
+            raise InvalidInputError(f"--samples DIRECT must be 4 m^2 for a whole m >= 8 (256, 1024, 4096, ...: below "
                                     f"{MIN_SAMPLES} the standard errors are not reliable), got {opts.direct_samples}")
         if (int(opts.albedo_samples) != opts.albedo_samples or opts.albedo_samples < MIN_SAMPLES
                 or opts.albedo_samples % 2):
