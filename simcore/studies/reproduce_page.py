@@ -236,7 +236,8 @@ def _check_section(F, results):
     failed = [label for label, path, _ in runs if (F.get(path) or {}).get("pass") is not True]
     lines = ["## The analytic check of every run", "",
              "Each run's rendered irradiance is checked against the analytic model (`sunsim validate RUN`); "
-             "the figures are the check's own, as stored in the run file."]
+             "the figures and the failed tests are the check's, as this version of sunsim computes it from the "
+             "run file's arrays."]
     if failed:
         lines += ["", f"**{len(failed)} run(s) failed their check and were used anyway "
                       "(`--allow-failed-checks`): " + ", ".join(failed) + ".** Every number derived from them is "
@@ -245,6 +246,8 @@ def _check_section(F, results):
     for label, path, _ in runs:
         chk = F.get(path) or {}
         cells = [label, "pass" if chk.get("pass") is True else "**FAIL**"]
+        cells.append(", ".join(f"{t['component']} {t['test']}" for t in chk.get("tests", [])
+                               if isinstance(t, dict) and not t.get("passed", True)) or "-")
         for k in keys:
             v = chk.get(k)
             if isinstance(v, bool) or isinstance(v, str):
@@ -256,7 +259,7 @@ def _check_section(F, results):
             else:
                 cells.append("-")
         rows.append(cells)
-    return lines + [""] + _fmt_table(["run", "check"] + keys, rows)
+    return lines + [""] + _fmt_table(["run", "check", "failed tests"] + keys, rows)
 
 
 def _variant_section(F, results, cfgs):
