@@ -532,6 +532,8 @@ def build_parser():
                                    "one orbit at 1 s), check it, write netCDF")
     _add_orbit_options(r)
     _add_render_options(r)
+    r.add_argument("--fail-on-check", dest="fail_on_check", action="store_true", default=True,
+                   help="exit status 1 when the analytic check fails (the default; kept for older scripts)")
     r.add_argument("--no-fail-on-check", dest="fail_on_check", action="store_false",
                    help="exit status 0 even when the analytic check fails (default: 1; the file is written either way)")
     r.add_argument("--json", action="store_true", help="machine-readable output")
