@@ -107,8 +107,9 @@ def binomial_tail(k, n, p):
     return 1.0 if k <= 0 else float(stats.binom.sf(k - 1, n, p))
 
 
-def _component_tests(name, diff, var, dof, diode, n_diodes, alpha):
-    """Return the list of test dicts of one component (arrays over its stochastic diode-epochs)."""
+def _component_tests(name, diff, var, z, diode, n_diodes, alpha):
+    """Return the list of test dicts of one component (arrays over its stochastic diode-epochs; ``z`` their
+    normal scores, :func:`normal_scores`)."""
     tests = []
     n = diff.size
     thr = _threshold(alpha)
@@ -135,7 +136,6 @@ def _component_tests(name, diff, var, dof, diode, n_diodes, alpha):
                       p_value=float(min(1.0, len(live) * 2 * stats.norm.sf(abs(worst[0])))),
                       passed=abs(worst[0]) <= thr_k, note=f"worst diode {worst[1]}",
                       per_diode={int(k): float(x) for k, x in zip(live, per)}))
-    z = normal_scores(diff, var, dof)
     # The degrees of freedom are themselves estimated (Satterthwaite's from the same strata reads low
     # when few strata carry the variance): the null is "half within +-0.6745 for some nu between the
     # estimate and infinity". The share moves monotonically with nu, so the p-value is the larger of
@@ -172,14 +172,12 @@ def compare(components, n_diodes, e_sun, e_sun_cos, *, alpha=ALPHA_RUN):
     ``e_sun`` (N, 1) and ``e_sun_cos`` (N, K): E_sun, and x the cosine of incidence on each diode.
     """
     alpha_family = alpha / sum(len(families(c)) for c in components)
-    diode_idx = None
     report = {"alpha_run": alpha, "alpha_per_test_family": alpha_family, "tests": []}
     flags = {}
     for name, (x, se, dof, samples, ref, extra) in components.items():
         x, se, dof, samples, ref = (np.asarray(a, dtype=float) for a in (x, se, dof, samples, ref))
         extra = np.broadcast_to(np.asarray(extra, dtype=float), x.shape)
-        if diode_idx is None or diode_idx.shape != x.shape:
-            diode_idx = np.broadcast_to(np.arange(x.shape[1]), x.shape)
+        diode_idx = np.broadcast_to(np.arange(x.shape[1]), x.shape)
         use = np.isfinite(x) & np.isfinite(ref) & np.isfinite(se)
         if name == "albedo":
             use &= ref > ALBEDO_FLOOR_W_M2
@@ -202,10 +200,10 @@ def compare(components, n_diodes, e_sun, e_sun_cos, *, alpha=ALPHA_RUN):
                                     passed=not exact_bad.any(),
                                     note="values with zero standard error off by more than float32 "
                                          "arithmetic (or what all their samples may have missed)"))
-        report["tests"] += _component_tests(name, d[stoch], var[stoch], dof_tot[stoch], diode_idx[stoch],
-                                            x.shape[1], alpha_family)
         z = np.zeros(x.shape)
         z[stoch] = normal_scores(d[stoch], var[stoch], dof_tot[stoch])
+        report["tests"] += _component_tests(name, d[stoch], var[stoch], z[stoch], diode_idx[stoch],
+                                            x.shape[1], alpha_family)
         flags[name] = (stoch & (np.abs(z) > Z_TAIL)) | exact_bad
         report[f"{name}_checked"] = int(use.sum())
     report["pass"] = bool(all(t["passed"] for t in report["tests"]))
