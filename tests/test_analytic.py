@@ -225,3 +225,44 @@ def test_bad_input(rng):
         diode_irradiance(r, s, rot, frames, ap, eclipse="umbra")
     with pytest.raises(ValueError, match="negative"):
         diode_irradiance(r, s, rot, frames, ap, map=np.full((180, 288), -1.0))
+
+
+def test_direction_visibility_backends_agree_and_partition_the_albedo(rng):
+    # Oracles: the numpy and Dr.Jit (double) implementations agree on random visibility tables; a share of
+    # 1 everywhere on a full mask is the albedo with no body; a share s everywhere is s times it, and the
+    # albedo through the mask before its shadow (albedo_mesh_w_m2) is then the no-body albedo itself; an
+    # empty mask changes nothing.
+    from simcore.radiometry.analytic import BodyBox, DirectionVisibility
+    r, sun, rot = _orbit(rng, n=40)
+    frames = _tilt_frames()
+    ap = WellAperture.design(70.0)
+    body = BodyBox((0.05, 0.05, 0.1135), np.array([f[2] * 0.06 for f in frames]), np.array([f[2] for f in frames]))
+    K, nt, nph, sub = len(frames), 90, 180, 4
+    kw = dict(body=body, sun_angular_radius_rad=0.0, direct=False)
+
+    def vis(mask, fine, half):
+        return DirectionVisibility(mask, fine, half)
+    full = np.ones((K, nt, nph), bool)
+    ones = (np.ones((K, nt * sub, nph * sub)), np.ones((K, nt * sub // 2, nph * sub // 2)))
+    plain = diode_irradiance(r, sun, rot, frames, ap, backend="numpy", **kw)
+    nobody = diode_irradiance(r, sun, rot, frames, ap, backend="numpy", **{**kw, "body": None})
+    got = diode_irradiance(r, sun, rot, frames, ap, backend="numpy", visibility=vis(full, *ones), **kw)
+    np.testing.assert_allclose(got.albedo_w_m2, nobody.albedo_w_m2, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got.albedo_mesh_w_m2, nobody.albedo_w_m2, rtol=1e-12, atol=1e-12)
+    assert np.all(got.albedo_visibility_error_w_m2 < 1e-12)
+    half = diode_irradiance(r, sun, rot, frames, ap, backend="numpy",
+                            visibility=vis(full, 0.5 * ones[0], 0.25 * ones[1]), **kw)
+    np.testing.assert_allclose(half.albedo_w_m2, 0.5 * nobody.albedo_w_m2, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(half.albedo_visibility_error_w_m2, 0.25 * nobody.albedo_w_m2, rtol=1e-12, atol=1e-12)
+    none = diode_irradiance(r, sun, rot, frames, ap, backend="numpy", visibility=vis(~full, *ones), **kw)
+    np.testing.assert_allclose(none.albedo_w_m2, plain.albedo_w_m2, rtol=1e-12, atol=1e-12)
+    assert np.all(none.albedo_mesh_w_m2 == 0)
+    assert plain.albedo_mesh_w_m2 is None
+    mask = rng.random((K, nt, nph)) < 0.3
+    fine, coarse = rng.random(ones[0].shape), rng.random(ones[1].shape)
+    a = diode_irradiance(r, sun, rot, frames, ap, backend="numpy", visibility=vis(mask, fine, coarse), **kw)
+    b = diode_irradiance(r, sun, rot, frames, ap, backend="drjit", precision="double",
+                         visibility=vis(mask, fine, coarse), **kw)
+    for name in ("albedo_w_m2", "albedo_mesh_w_m2", "albedo_visibility_error_w_m2"):
+        np.testing.assert_allclose(getattr(b, name), getattr(a, name), rtol=1e-9, atol=1e-9, err_msg=name)
+    assert np.count_nonzero(a.albedo_mesh_w_m2) > 0.2 * a.albedo_mesh_w_m2.size

@@ -214,6 +214,11 @@ def describe(report):
     """Return the check report as printable lines: one per test with its statistic and threshold."""
     lines = [f"check: false-alarm rate {report['alpha_run']:g} per run ({report['alpha_per_test_family']:.2g} "
              f"per test family)"]
+    if "albedo_mesh_quadrature" in report:
+        lines.append(f"  albedo: {report.get('albedo_checked', 0)} diode-epochs checked, "
+                     f"{report['albedo_mesh_quadrature']} of them with light through directions where shadows of "
+                     f"the body or other parts cross the diode (there the reference takes the diode's visible "
+                     f"share traced against the mesh, a deterministic quadrature)")
     for t in report["tests"]:
         stat = t["statistic"]
         if t["test"] in ("bias", "bias_per_diode") and stat is not None:

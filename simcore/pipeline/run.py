@@ -27,7 +27,8 @@ from scenes.config import SatelliteConfig
 from scenes.meshes import build_satellite_mesh
 from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
-from simcore.radiometry.analytic import BodyBox, diode_irradiance
+from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance
+from simcore.shapes.occlusion import box_hit
 from simcore.render.irradiance import DiodeSurfaces, Renderer
 
 from simcore import _llvm
@@ -181,14 +182,48 @@ class PreparedRun:
         g = self.geometry
         return g.sun_distance_scale[sl] if self.opts.distance_scaling else np.ones(sl.stop - sl.start)
 
-    def analytic(self, sl, reflectivity_map, direct=True):
+    @functools.cached_property
+    def visibility(self):
+        """Return the ``DirectionVisibility`` of the check's albedo reference: in the cells of
+        :attr:`shaded_directions`, the visible share of each diode traced against the mesh on a 0.25 x 0.5
+        deg grid (and a 0.5 x 1 deg one for the quadrature's error), ``Renderer.visible_share``."""
+        fine, half = self.renderer.visible_share(self.shaded_directions)
+        return DirectionVisibility(self.shaded_directions, fine, half)
+
+    @functools.cached_property
+    def shaded_directions(self):
+        """Return (K, 90, 180) bool: per diode, the directions of its 1 x 2 deg grid
+        (``Renderer.direction_grid``) where the analytic model's picture of what shades the diode is not
+        the mesh's: the traced probes of ``Renderer.blocked_share`` are not all what the body box at the
+        diode's centre says (all blocked or all free), i.e. a shadow edge of the body crosses the diode or
+        another part (rails, other diodes' mounts) shades it. Widened by one cell all round, so that an
+        edge that passes between the cells' centres still marks the cells it crosses."""
+        share = self.renderer.blocked_share()
+        th, ph = self.renderer.direction_grid()
+        TH, PH = np.meshgrid(th, ph, indexing="ij")
+        local = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)
+        box = BodyBox.from_config(self.config)
+        out = np.zeros(share.shape, bool)
+        for k, frame in enumerate(np.asarray(self.config.frames)):
+            model = box_hit(box.positions_m[k], local @ frame, box.half_m).astype(float)
+            cell = np.isfinite(share[k]) & (share[k] != model)
+            grown = cell.copy()
+            grown[1:] |= cell[:-1]
+            grown[:-1] |= cell[1:]
+            out[k] = grown | np.roll(grown, 1, axis=1) | np.roll(grown, -1, axis=1)
+        return out
+
+    def analytic(self, sl, reflectivity_map, direct=True, mesh=False):
+        """Return the analytic irradiance of epochs ``sl`` on ``reflectivity_map``; ``mesh``: the albedo with
+        the traced :attr:`visibility` where shadows cross the diodes (the check's reference)."""
         g = self.geometry
         return diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
                                 self.config.frames, self.config.apertures, map=reflectivity_map,
                                 e_sun_w_m2=self.opts.e_sun_w_m2, distance_scaling=self.opts.distance_scaling,
                                 eclipse="conical" if self.opts.sun_disc else "cylindrical",
                                 body=BodyBox.from_config(self.config),
-                                sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct)
+                                sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
+                                visibility=self.visibility if mesh else None)
 
     def render_chunk(self, start, stop):
         """Return the arrays of epochs [start, stop): rendered and analytic irradiance, and the check's
@@ -208,7 +243,7 @@ class PreparedRun:
                                        direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
             plain[pick] = np.stack([sub.direct_w_m2, sub.direct_se_w_m2, sub.direct_dof], axis=-1)
         native = self.analytic(sl, self.map)
-        fine = self.analytic(sl, self.map_refined, direct=False)
+        fine = self.analytic(sl, self.map_refined, direct=False, mesh=True)
         out = {
             "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2], axis=-1),
             "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2], axis=-1),
@@ -217,6 +252,8 @@ class PreparedRun:
             "direct_plain": plain,
             "analytic": np.stack([native.direct_w_m2, native.albedo_w_m2], axis=-1),
             "analytic_albedo_refined": fine.albedo_w_m2,
+            "albedo_mesh": fine.albedo_mesh_w_m2,
+            "albedo_visibility_error": fine.albedo_visibility_error_w_m2,
             "valid": valid & res.valid,
         }
         return out
@@ -309,6 +346,14 @@ def build_dataset(study, data, variant):
             "albedo_discretisation_bound": (("time", "diode"), bound,
                                             {"units": W, "long_name": "estimated cell-discretisation error of "
                                                                       "the refined analytic albedo"}),
+            "albedo_mesh": (("time", "diode"), data["albedo_mesh"],
+                            {"units": W, "long_name": "albedo of the check's reference arriving through directions "
+                                                     "where shadows of the body or other parts cross the diode "
+                                                     "(before their shadow; there the reference takes the visible "
+                                                     "share traced against the mesh)"}),
+            "albedo_visibility_error": (("time", "diode"), data["albedo_visibility_error"],
+                                        {"units": W, "long_name": "estimated error of the reference's traced "
+                                                                  "visible share (its grid made twice as coarse)"}),
             "sun_dir_body": (("time", "xyz"), g.sun_dir_body, {"units": "1", "long_name": "unit satellite->Sun vector",
                                                                  "frame": "body"}),
             "sun_scale": ("time", study.sun_scale(slice(0, n)),
@@ -536,6 +581,8 @@ def check_run(ds):
         "direct": (masked(irr[..., 0]), se[..., 0], dof[..., 0], samples[..., 0], ref[..., 0], 0.0),
         "albedo": (masked(irr[..., 1]), se[..., 1], dof[..., 1], samples[..., 1], ref[..., 1], bound ** 2),
     }
+    if "albedo_visibility_error" in ds:
+        components["albedo"] = components["albedo"][:5] + (bound ** 2 + ds["albedo_visibility_error"].values ** 2,)
     if "direct_plain" in ds:
         plain = ds["direct_plain"].values
         # the hint-free estimate always takes the run's first-round count (no target accuracy)
@@ -543,6 +590,9 @@ def check_run(ds):
         components["direct_plain"] = (masked(plain[..., 0]), plain[..., 1], plain[..., 2],
                                       np.where(samples[..., 0] > 0, n_plain, 0), ref[..., 0], 0.0)
     flags, report = _check.compare(components, k, scale, scale * cos_inc)
+    if "albedo_mesh" in ds:
+        report["albedo_mesh_quadrature"] = int(np.count_nonzero((ds["albedo_mesh"].values > 0)
+                                                                & (ref[..., 1] > _check.ALBEDO_FLOOR_W_M2) & valid))
     # In the Earth's shadow every value is 0 and agrees trivially: a span without Sun has checked nothing.
     report["sunlit_epochs"] = int(np.count_nonzero(ds["valid"].values.astype(bool) & (ds["illumination"].values > 0)))
     if report["sunlit_epochs"] == 0:
@@ -578,10 +628,12 @@ def recompute_analytic(path, *, chunk=4096, log=None):
                          "it was not made by this command's options")
     native = np.zeros(ds["analytic"].shape)
     fine = np.zeros(ds["analytic"].shape[:2])
+    mesh, mesh_err = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
     for s, e in chunk_ranges(n, chunk):
         a = study.analytic(slice(s, e), study.map)
         native[s:e, :, 0], native[s:e, :, 1] = a.direct_w_m2, a.albedo_w_m2
-        fine[s:e] = study.analytic(slice(s, e), study.map_refined, direct=False).albedo_w_m2
+        a = study.analytic(slice(s, e), study.map_refined, direct=False, mesh=True)
+        fine[s:e], mesh[s:e], mesh_err[s:e] = a.albedo_w_m2, a.albedo_mesh_w_m2, a.albedo_visibility_error_w_m2
         if log:
             log(f"analytic {e}/{n}")
     data = {"rendered": ds["irradiance"].values, "rendered_se": ds["irradiance_se"].values,
@@ -590,6 +642,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
             "direct_plain": (ds["direct_plain"].values if "direct_plain" in ds
                              else np.full((ds.sizes["time"], ds.sizes["diode"], 3), np.nan)),
             "samples": ds["samples"].values, "analytic": native, "analytic_albedo_refined": fine,
+            "albedo_mesh": mesh, "albedo_visibility_error": mesh_err,
             "valid": ds["valid"].values.astype(bool)}
     new, report = build_dataset(study, data, ds.attrs.get("variant", ""))
     new.attrs["software"] = ds.attrs["software"]          # the rendering's versions

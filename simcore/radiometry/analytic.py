@@ -52,6 +52,10 @@ class AnalyticIrradiance:
     direct_w_m2: np.ndarray
     albedo_w_m2: np.ndarray
     illuminated_fraction: np.ndarray  # (N,), the eclipse factor applied to the direct Sun
+    # With a DirectionVisibility (diode_irradiance's ``visibility``), (N, K) each: the albedo arriving
+    # through the directions it covers (before their shadow), and the estimated error of its quadrature
+    albedo_mesh_w_m2: np.ndarray = None
+    albedo_visibility_error_w_m2: np.ndarray = None
 
     @property
     def total_w_m2(self):
@@ -63,6 +67,39 @@ class AnalyticIrradiance:
 
     def keys(self):
         return ("direct_w_m2", "albedo_w_m2", "illuminated_fraction")
+
+
+@dataclass(frozen=True)
+class DirectionVisibility:
+    """What the satellite's own parts leave of each diode's view, where this model's body box is not
+    enough: per diode a mask (K, n_theta, n_phi) over directions in its frame (rows: angle from the
+    normal over 0..90 deg, columns: azimuth from u over -180..180 deg) of the cells where shadows of
+    the body or of other parts cross the diode, and inside them the visible share of the diode's lit
+    part (0..1) on a grid ``sub`` times finer (``fine``, (K, n_theta sub, n_phi sub)) and on one half as
+    fine (``half``, for the error of the quadrature), e.g. from
+    ``simcore.render.irradiance.Renderer.visible_share``. The albedo from marked cells is the well's
+    response times the fine share (nearest cell); elsewhere the body box at the diode's centre decides.
+    """
+
+    mask: np.ndarray
+    fine: np.ndarray
+    half: np.ndarray
+
+    def __post_init__(self):
+        m = np.asarray(self.mask, bool)
+        K, nt, nph = m.shape
+        sub = self.fine.shape[1] // nt
+        if (sub < 2 or sub % 2 or self.fine.shape != (K, nt * sub, nph * sub)
+                or self.half.shape != (K, nt * sub // 2, nph * sub // 2)):
+            raise ValueError(f"DirectionVisibility: fine must be (K, n_theta sub, n_phi sub) with an even sub and "
+                             f"half (K, n_theta sub/2, n_phi sub/2); got mask {m.shape}, fine {self.fine.shape}, "
+                             f"half {self.half.shape}")
+        object.__setattr__(self, "mask", m)
+
+    def tables(self):
+        """Return ((table, n_theta, n_phi) for mask, fine and half): flat float tables (0 outside the mask)."""
+        return [(np.nan_to_num(np.asarray(a, float)).reshape(a.shape[0], -1), a.shape[1], a.shape[2])
+                for a in (self.mask, self.fine, self.half)]
 
 
 # ---- input checks ---------------------------------------------------------------------
@@ -194,14 +231,29 @@ def cell_runs(r_sat_m, sun_unit, refl):
 
 
 # ---- the albedo sums ---------------------------------------------------------------------
-def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None):
-    """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy."""
+def _cell_index(d_diode, nt, nph):
+    """Return the flat cell index of directions (..., 3) in a diode frame on a grid of (nt, nph) cells:
+    theta from the normal over 0..90 deg, azimuth from u over -180..180 deg (directions behind the diode
+    fall in the last row)."""
+    th = np.arccos(np.clip(d_diode[..., 2], 0.0, 1.0))
+    i = np.minimum((th * (2.0 * nt / np.pi)).astype(np.int64), nt - 1)
+    ph = np.arctan2(d_diode[..., 1], d_diode[..., 0])
+    j = np.minimum(((ph + np.pi) * (nph / _TWO_PI)).astype(np.int64), nph - 1)
+    return i * nph + j
+
+
+def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None, visibility=None):
+    """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy; with ``visibility`` (a
+    :class:`DirectionVisibility`) also the same sum with its half-fine share, and the sum of the well's
+    response over its marked cells alone (else None, None)."""
     n_ep, K = r_sat.shape[0], frames.shape[0]
     out = np.zeros((n_ep, K))
+    alt = None if visibility is None else np.zeros((n_ep, K))
+    band = None if visibility is None else np.zeros((n_ep, K))
     rows, first, count = cell_runs(r_sat, sun_unit, refl)
     cnt = count.reshape(-1)
     if cnt.sum() == 0:
-        return out
+        return out, alt, band
     ep = np.repeat(np.repeat(np.arange(n_ep), rows.shape[1] * 2), cnt)
     row = np.repeat(rows.reshape(-1), cnt)
     offs = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
@@ -214,13 +266,20 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
     cos_in = np.einsum("ij,ij->i", sun_unit[ep], n)
     w = refl.weights_m2[row, col] * np.maximum(cos_in, 0.0) * np.maximum(cos_out, 0.0) * inv_d ** 2
     e_body = np.einsum("nij,nj->ni", R_body_from_ecef[ep], -v * inv_d[:, None])
+    tabs = None if visibility is None else visibility.tables()
     for k in range(K):
         d_diode = e_body @ frames[k].T
-        a = responses[k].response(d_diode)
-        if body is not None:
-            a = np.where(box_hit(body.positions_m[k], e_body, body.half_m), 0.0, a)
+        a0 = responses[k].response(d_diode)
+        a = a0 if body is None else np.where(box_hit(body.positions_m[k], e_body, body.half_m), 0.0, a0)
+        if tabs is not None:
+            (mt, *m_shape), (ft, *f_shape), (ht, *h_shape) = tabs
+            mark = mt[k][_cell_index(d_diode, *m_shape)] > 0
+            band[:, k] = np.bincount(ep, weights=w * a0 * mark, minlength=n_ep)
+            a_alt = np.where(mark, a0 * ht[k][_cell_index(d_diode, *h_shape)], a)
+            a = np.where(mark, a0 * ft[k][_cell_index(d_diode, *f_shape)], a)
+            alt[:, k] = np.bincount(ep, weights=w * a_alt, minlength=n_ep)
         out[:, k] = np.bincount(ep, weights=w * a, minlength=n_ep)
-    return out
+    return out, alt, band
 
 
 class _DrJitOps:
@@ -231,8 +290,10 @@ class _DrJitOps:
         self.tiny = tiny
 
 
-def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None):
-    """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, from one Dr.Jit LLVM kernel."""
+def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None,
+                  visibility=None):
+    """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor from one Dr.Jit LLVM kernel, and the
+    two sums of :func:`_albedo_numpy` for ``visibility`` (else None, None)."""
     dr = _llvm.import_drjit()
     from drjit.llvm import Float, Float64, UInt32
 
@@ -288,25 +349,45 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         bx = M[0] * ex + M[1] * ey + M[2] * ez
         by = M[3] * ex + M[4] * ey + M[5] * ez
         bz = M[6] * ex + M[7] * ey + M[8] * ez
-        new = []
+        new, part, alt = [], [], []
         for k in range(K):
             f = fr[k]
             du = f[0][0] * bx + f[0][1] * by + f[0][2] * bz
             dv = f[1][0] * bx + f[1][1] * by + f[1][2] * bz
             dn = f[2][0] * bx + f[2][1] * by + f[2][2] * bz
-            a = kernels[k](du, dv, dn, ops)
+            a0 = kernels[k](du, dv, dn, ops)
+            a = a0
             if body_box is not None:
-                a = dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a)
-            new.append(acc[k] + wt * a)
-        return (t + 1, *new)
+                a = dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
+            if tabs is not None:
+                # the cells of _cell_index: theta from the normal, azimuth from u
+                th = dr.acos(dr.clip(dn, 0.0, 1.0))
+                ph = dr.atan2(dv, du) + np.pi
 
-    state = (dr.zeros(UInt32, n_lanes), *[dr.zeros(F, n_lanes) for _ in range(K)])
+                def look(tab, nt, nph):
+                    i = dr.minimum(UInt32(th * (2.0 * nt / np.pi)), nt - 1)
+                    j = dr.minimum(UInt32(ph * (nph / _TWO_PI)), nph - 1)
+                    return dr.gather(F, tab, i * nph + j)
+                mark = look(*dr_tabs[0][k]) > 0.5
+                part.append(acc[K + k] + wt * dr.select(mark, a0, 0.0))
+                alt.append(acc[2 * K + k] + wt * dr.select(mark, a0 * look(*dr_tabs[2][k]), a))
+                a = dr.select(mark, a0 * look(*dr_tabs[1][k]), a)
+            new.append(acc[k] + wt * a)
+        return (t + 1, *new, *part, *alt)
+
+    tabs = None if visibility is None else visibility.tables()
+    n_acc = K if tabs is None else 3 * K
+    if tabs is not None:
+        dr_tabs = [[(table(tab[k]), nt, nph) for k in range(K)] for tab, nt, nph in tabs]
+    state = (dr.zeros(UInt32, n_lanes), *[dr.zeros(F, n_lanes) for _ in range(n_acc)])
     _, *acc = dr.while_loop(state=state, cond=cond, body=body)
     dr.eval(*acc)
-    out = np.empty((n_ep, K))
-    for k in range(K):
-        out[:, k] = np.asarray(acc[k].numpy(), dtype=np.float64).reshape(2, n_ep, W).sum(axis=(0, 2))
-    return out
+    sums = np.empty((n_ep, n_acc))
+    for k in range(n_acc):
+        sums[:, k] = np.asarray(acc[k].numpy(), dtype=np.float64).reshape(2, n_ep, W).sum(axis=(0, 2))
+    if tabs is None:
+        return sums, None, None
+    return sums[:, :K], sums[:, 2 * K:], sums[:, K:2 * K]
 
 
 def _box_hit_dr(dr, origin, d, half):
@@ -445,7 +526,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
 def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_body, responses, *,
                      map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
                      albedo=True, backend="auto", precision="single", batch_epochs=4096, body=None,
-                     sun_angular_radius_rad=0.0, direct=True):
+                     sun_angular_radius_rad=0.0, direct=True, visibility=None):
     """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`AnalyticIrradiance`.
 
     ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
@@ -464,6 +545,10 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     ``sun_angular_radius_rad``: > 0 averages the direct response over the solar
     disc (37 equal-area points), as a renderer with a finite Sun sees it.
     ``direct=False`` skips the direct Sun (zeros), e.g. for an albedo-only reference.
+    ``visibility``: a :class:`DirectionVisibility`: the albedo from the directions it marks is the
+    well's response times the visible share it gives (the body box decides elsewhere);
+    ``albedo_mesh_w_m2`` is then the albedo through those directions before their shadow, and
+    ``albedo_visibility_error_w_m2`` the difference its half-fine share makes (the quadrature's error).
     """
     r_sat = _rows("r_sat_ecef_m", r_sat_ecef_m)
     r_sun = _rows("r_sun_ecef_m", r_sun_ecef_m)
@@ -511,6 +596,10 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     direct = direct * (e_direct * lit)[:, None]
 
     alb = np.zeros((n_ep, frames.shape[0]))
+    if visibility is not None and visibility.mask.shape[0] != frames.shape[0]:
+        raise ValueError(f"visibility is for {visibility.mask.shape[0]} diodes, not {frames.shape[0]}")
+    alb_alt = None if visibility is None else np.zeros_like(alb)
+    alb_band = None if visibility is None else np.zeros_like(alb)
     if albedo:
         sun_unit = r_sun / np.linalg.norm(r_sun, axis=1)[:, None]
         batch = max(1, int(batch_epochs))
@@ -518,10 +607,16 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
             batch = min(batch, 256)      # numpy holds every (epoch, cell) pair of a batch in memory
         for s in range(0, n_ep, batch):
             sl = slice(s, min(n_ep, s + batch))
-            if backend == "drjit":
-                alb[sl] = _albedo_drjit(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl,
-                                        precision, body)
-            else:
-                alb[sl] = _albedo_numpy(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl, body)
+            fn = _albedo_drjit if backend == "drjit" else _albedo_numpy
+            extra = (precision,) if backend == "drjit" else ()
+            alb[sl], alt, band = fn(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl, *extra,
+                                    body, visibility)
+            if visibility is not None:
+                alb_alt[sl], alb_band[sl] = alt, band
         alb *= (e_sun / np.pi)[:, None]
-    return AnalyticIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit)
+        if visibility is not None:
+            alb_alt *= (e_sun / np.pi)[:, None]
+            alb_band *= (e_sun / np.pi)[:, None]
+    err = None if visibility is None else np.abs(alb - alb_alt)
+    return AnalyticIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit,
+                              albedo_mesh_w_m2=alb_band, albedo_visibility_error_w_m2=err)

@@ -84,6 +84,10 @@ _DIRECT, _ALBEDO, _DIRECT_PLAIN = 1, 2, 3
 # 16, 0.995 with 32).
 _TEA_ROUNDS = 32
 _MAX_LANES = 1 << 22      # lanes per launch (memory bound, ~100 MB of temporaries)
+# Direct-Sun tasks that something besides the diode's own well shadows in part (Renderer._partly_blocked):
+# probe rays toward the disc's centre and this many points on its rim, and this many times the samples.
+_PROBE_RIM = 32
+_EDGE_BOOST = 16
 
 
 # --------------------------------------------------------------------------- variants
@@ -262,8 +266,9 @@ class Renderer:
     ``control_variate``: use the diodes' WellAperture for the aperture split
     (module docstring) when ``diodes.apertures`` is given.
 
-    Building one traces a small visibility table per diode (1 x 2 deg, from its
-    well's opening) that only shapes the albedo sampling.
+    Building one traces a small visibility table per diode (1 x 2 deg, 3 x 3 probe
+    rays from the part of the diode its well lights) that only shapes the albedo
+    sampling.
     """
 
     def __init__(self, diodes, occluder_mesh=None, *, reflectivity=None, lon_west_deg=-180.0,
@@ -559,7 +564,7 @@ class Renderer:
         ok = hit & (cos_sun > 0) & (dn > 0)
         f = dr.abs(rho) * cos_sun * dn * lit
         if self._vis is not None:
-            # what the rest of the satellite hides from this diode (table from its well's rim)
+            # what the rest of the satellite hides from this diode (_visibility_table)
             fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(2)]
             row = dr.clip(mi.Int32(dr.acos(dr.clip(dn, -1.0, 1.0)) * (_VIS_NT / (0.5 * np.pi))), 0, _VIS_NT - 1)
             col = mi.Int32((dr.atan2(dr.dot(fr[1], d), dr.dot(fr[0], d)) + np.pi) * (_VIS_NP / (2.0 * np.pi)))
@@ -569,22 +574,103 @@ class Renderer:
         return dr.select(ok, f, 0.0).numpy().reshape(T, n_points)
 
     def _visibility_table(self):
-        """Return the (K * _VIS_NT * _VIS_NP,) table (Dr.Jit Float) of 1/0: does a ray from the
-        centre of diode k's well opening toward the direction at the centre of cell (theta from
-        the normal, azimuth from u) of a 1 x 2 deg grid leave the satellite unblocked? Only
-        shapes the albedo sampling; None without an occluder mesh."""
+        """Return the (K * _VIS_NT * _VIS_NP,) table (Dr.Jit Float) that shapes the albedo sampling: per
+        diode and direction of :meth:`direction_grid`, the largest share of the diode's lit part the mesh
+        leaves visible (1 - :meth:`blocked_share`, 1 where the well lights nothing) over the cell and its
+        eight neighbours, so that a direction seen past a shadow's edge by part of the diode keeps its
+        weight. None without an occluder mesh."""
         if self._scene is None:
             return None
-        dr, mi = self._dr, self._mi
+        vis = 1.0 - np.nan_to_num(self.blocked_share(), nan=0.0)
+        grown = vis.copy()
+        grown[:, 1:] = np.maximum(grown[:, 1:], vis[:, :-1])
+        grown[:, :-1] = np.maximum(grown[:, :-1], vis[:, 1:])
+        grown = np.maximum(grown, np.maximum(np.roll(grown, 1, axis=2), np.roll(grown, -1, axis=2)))
+        return self._mi.Float(grown.astype(np.float32).ravel())
+
+    def direction_grid(self):
+        """Return (theta, phi) (_VIS_NT,), (_VIS_NP,) rad: the cell centres of the 1 x 2 deg direction grid
+        of :meth:`blocked_share` (angle from the diode normal 0..90 deg, azimuth from u -180..180 deg)."""
         th = (np.arange(_VIS_NT) + 0.5) * (0.5 * np.pi / _VIS_NT)
         ph = (np.arange(_VIS_NP) + 0.5) * (2.0 * np.pi / _VIS_NP) - np.pi
+        return th, ph
+
+    def blocked_share(self):
+        """Return (K, 90, 180) (computed once): per diode and direction of its 1 x 2 deg grid (:meth:`direction_grid`), the
+        share of 3 x 3 probe rays from the part of the diode its own analytic well lights (inset 1e-3 of
+        the side) toward the cell's centre that the mesh blocks (body, rails, other diodes' mounts: what
+        the diode's own well does not hold); NaN where the well lights nothing. Zeros without a mesh.
+
+        The check compares it with the analytic model's picture of the same directions to tell which
+        albedo diode-epochs its reference covers (``simcore.pipeline.run``)."""
+        if getattr(self, "_blocked", None) is not None:
+            return self._blocked
+        K = self.diodes.count
+        th, ph = self.direction_grid()
         TH, PH = np.meshgrid(th, ph, indexing="ij")
-        local = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1).reshape(-1, 3)
-        d = np.concatenate([local @ f for f in self.diodes.frames])
-        o = self.diodes.positions_m + self.diodes.frames[:, 2] * (self._ap_params[:, 4:5] + 1e-5)
-        o = np.repeat(o, len(local), axis=0)
-        blocked = self._scene.ray_test(mi.Ray3f(self._v3(o), self._v3(d)))
-        return mi.Float(dr.select(blocked, 0.0, 1.0))
+        local = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)    # (NT, NP, 3)
+        out = np.zeros((K, _VIS_NT, _VIS_NP))
+        g = np.array([1e-3, 0.5, 1.0 - 1e-3])
+        for k in range(K):
+            if self.control_variate:
+                x0, x1, y0, y1, lit = lit_rectangle(*self._ap_params[k], local[..., 0], local[..., 1], local[..., 2])
+            else:
+                x0, y0 = np.full(TH.shape, -0.5), np.full(TH.shape, -0.5)
+                x1, y1, lit = -x0, -y0, np.ones(TH.shape)
+            ok = (lit > 0) & (x1 - x0 > 2e-3) & (y1 - y0 > 2e-3)
+            out[k][~ok] = np.nan
+            if self._scene is None or not ok.any():
+                continue
+            fx = (x0[ok][:, None, None] + (x1 - x0)[ok][:, None, None] * g[:, None]) + 0 * g[None, :]
+            fy = (y0[ok][:, None, None] + (y1 - y0)[ok][:, None, None] * g[None, :]) + 0 * g[:, None]
+            d = np.broadcast_to((local[ok] @ self.diodes.frames[k])[:, None, None], (*fx.shape, 3))
+            o = (self.diodes.positions_m[k] + fx[..., None] * self._diode_f32["U"][k]
+                 + fy[..., None] * self._diode_f32["V"][k])
+            hit = self._scene.ray_test(self._mi.Ray3f(self._v3(o.reshape(-1, 3)), self._v3(d.reshape(-1, 3))))
+            out[k][ok] = np.asarray(hit.numpy(), float).reshape(fx.shape).mean(axis=(1, 2))
+        self._blocked = out
+        return out
+
+    def visible_share(self, mask, sub=4, points=8):
+        """Return (fine, half): per diode, inside the cells of ``mask`` ((K, 90, 180) bool on the grid of
+        :meth:`direction_grid`), the share of the part of the diode its own analytic well lights that the
+        mesh leaves visible toward each cell's centre, on grids ``sub`` and ``sub / 2`` times finer
+        ((K, 90 sub, 180 sub) and (K, 45 sub, 90 sub); NaN outside the mask). A deterministic quadrature:
+        ``points`` x ``points`` midpoints of the lit part per direction (for
+        ``simcore.radiometry.analytic.DirectionVisibility``)."""
+        K = self.diodes.count
+        mask = np.asarray(mask, bool)
+        g = (np.arange(points) + 0.5) / points
+        out = []
+        for s_ in (sub, sub // 2):
+            nt, nph = _VIS_NT * s_, _VIS_NP * s_
+            share = np.full((K, nt, nph), np.nan)
+            fine_mask = np.repeat(np.repeat(mask, s_, axis=1), s_, axis=2)
+            th = (np.arange(nt) + 0.5) * (0.5 * np.pi / nt)
+            ph = (np.arange(nph) + 0.5) * (2.0 * np.pi / nph) - np.pi
+            for k in range(K):
+                i, j = np.nonzero(fine_mask[k])
+                if not len(i):
+                    continue
+                local = np.stack([np.sin(th[i]) * np.cos(ph[j]), np.sin(th[i]) * np.sin(ph[j]), np.cos(th[i])], -1)
+                if self.control_variate:
+                    x0, x1, y0, y1, lit = lit_rectangle(*self._ap_params[k], local[:, 0], local[:, 1], local[:, 2])
+                else:
+                    x0, y0 = np.full(len(i), -0.5), np.full(len(i), -0.5)
+                    x1, y1, lit = -x0, -y0, np.ones(len(i))
+                fx = x0[:, None, None] + (x1 - x0)[:, None, None] * g[:, None] + 0.0 * g[None, :]
+                fy = y0[:, None, None] + (y1 - y0)[:, None, None] * g[None, :] + 0.0 * g[:, None]
+                d = np.broadcast_to((local @ self.diodes.frames[k])[:, None, None], (*fx.shape, 3))
+                o = (self.diodes.positions_m[k] + fx[..., None] * self._diode_f32["U"][k]
+                     + fy[..., None] * self._diode_f32["V"][k])
+                if self._scene is None:
+                    free = np.ones(len(i))
+                else:
+                    hit = self._scene.ray_test(self._mi.Ray3f(self._v3(o.reshape(-1, 3)), self._v3(d.reshape(-1, 3))))
+                    free = 1.0 - np.asarray(hit.numpy(), float).reshape(fx.shape).mean(axis=(1, 2))
+                share[k, i, j] = np.where(lit > 0, free, 0.0)
+            out.append(share)
+        return tuple(out)
 
     def _albedo_proposal(self, t):
         """Return per-task cap basis and bin CDF/PMF for the albedo sampling of tasks ``t``."""
@@ -801,13 +887,13 @@ class Renderer:
         the estimate it sizes (a stopping rule fed by the estimate's own samples reads low where
         it stopped early and high where it went on).
         """
+        n0 = np.broadcast_to(np.asarray(n0, np.int64), (len(g_),))
         if rel is None:
-            return self._round(kernel, base, kind, g_, k_, seed, np.full(len(g_), n0, np.int64), 0, fac, size,
-                               skip, plain)
-        pilot = np.full(len(g_), max(n0 // 4, 16), np.int64)
+            return self._round(kernel, base, kind, g_, k_, seed, n0.copy(), 0, fac, size, skip, plain)
+        pilot = np.maximum(n0 // 4, 16)
         m, se, _, n = self._round(kernel, base, kind, g_, k_, seed, pilot, 0, fac, size, skip, plain)
         need, want = _shortfall(m, se, n, rel, floor, power)
-        counts = np.clip(np.where(need, want, n0), n0, max(cap, n0)).astype(np.int64)
+        counts = np.clip(np.where(need, want, n0), n0, np.maximum(cap, n0)).astype(np.int64)
         return self._round(kernel, base, kind, g_, k_, seed, counts, 1, fac, size, skip, plain)
 
     def _round(self, kernel, base, kind, g_, k_, seed, counts, rnd, fac, size, skip, plain=False):
@@ -868,6 +954,8 @@ class Renderer:
         if self.control_variate and not disc and not plain:
             lit = self._lit_fraction(k_, sun[e_])
             skip = np.stack([lit <= 0.0, lit >= 1.0], axis=1)
+        if not plain:
+            n0 = np.where(self._partly_blocked(base, e_, sun, earth), n0 * _EDGE_BOOST, n0)
         m, se, dof, n = self._rounds(self._direct_kernel, base, _DIRECT_PLAIN if plain else _DIRECT, g_, k_, seed, n0, rel, floor,
                                      cap, fac, _direct_size, 4.0 / 3.0, skip, plain)
         out["dm"][e_, k_], out["dse"][e_, k_], out["ddof"][e_, k_], n_used[e_, k_] = m, se, dof, n
@@ -879,6 +967,70 @@ class Renderer:
         m, se, dof, n = self._rounds(self._albedo_kernel, base, _ALBEDO, g_, k_, seed, n0, rel, floor, cap, E[e_],
                                      _albedo_size, 2.0)
         out["am"][e_, k_], out["ase"][e_, k_], out["adof"][e_, k_], n_used[e_, k_] = m, se, dof, n
+
+    def _partly_blocked(self, base, e_, sun, earth):
+        """Return (T,) bool: the direct-Sun tasks whose light something other than the diode's own analytic
+        well blocks in part: the Earth's limb across the solar disc, or the mesh (body, rails, neighbours)
+        across the lit part of the diode, found by probe rays from its corners and centre toward the disc's
+        centre and rim (``_PROBE_RIM`` points).
+
+        Such a shadow can be a sliver of (point on the diode) x (point on the disc) worth 0.1 % of the
+        light: a round of ~1000 samples then misses it outright often enough (a few % of such tasks) to
+        read 10 standard errors high, because a standard error estimated from the samples cannot see
+        light that none of them met. These tasks get ``_EDGE_BOOST`` times the samples.
+        """
+        T = len(e_)
+        a = self.sun_angular_radius_rad
+        s = sun[e_]
+        out = np.zeros(T, bool)
+        if earth is not None and a > 0:
+            c = base["earth"]
+            dist = np.linalg.norm(c, axis=1)
+            theta = np.arccos(np.clip(np.einsum("ti,ti->t", s, c) / dist, -1.0, 1.0))
+            rho = np.arcsin(np.minimum(self.earth_radius_m / dist, 1.0))
+            out |= np.abs(theta - rho) < a
+        if self._scene is None:
+            return out
+        if a > 0:
+            helper = np.where(np.abs(s[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+            e1 = np.cross(s, helper)
+            e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+            e2 = np.cross(s, e1)
+            ang = 2.0 * np.pi * np.arange(_PROBE_RIM) / _PROBE_RIM
+            off = np.tan(0.999 * a) * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+            dirs = s[:, None] + off[None, :, :1] * e1[:, None] + off[None, :, 1:] * e2[:, None]
+            dirs = np.concatenate([s[:, None], dirs / np.linalg.norm(dirs, axis=2, keepdims=True)], axis=1)
+        else:
+            dirs = s[:, None]
+        D = dirs.shape[1]
+        fr = base["frame"]                                             # (T, 3, 3) rows u, v, n
+        dd = np.einsum("tij,tdj->tdi", fr, dirs)
+        ap = base["ap"]
+        if self.control_variate:
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                x0, x1, y0, y1, lit = lit_rectangle(*(ap[:, None, i] for i in range(5)),
+                                                    dd[..., 0], dd[..., 1], dd[..., 2])
+        else:
+            x0, y0 = np.full((T, D), -0.5), np.full((T, D), -0.5)
+            x1, y1 = -x0, -y0
+            lit = (dd[..., 2] > 0).astype(float)
+        # corners inset by 1e-4 of the side (points on a wall's foot are not what this looks for), centre
+        inset = 1e-4
+        fx = np.stack([x0 + inset, x1 - inset, x0 + inset, x1 - inset, 0.5 * (x0 + x1)], axis=2)
+        fy = np.stack([y0 + inset, y0 + inset, y1 - inset, y1 - inset, 0.5 * (y0 + y1)], axis=2)
+        P = fx.shape[2]
+        o = (base["pos"][:, None, None] + fx[..., None] * base["U"][:, None, None]
+             + fy[..., None] * base["V"][:, None, None])
+        d = np.broadcast_to(dirs[:, :, None], o.shape)
+        mi = self._mi
+        o32 = np.ascontiguousarray(o.reshape(-1, 3).T.astype(np.float32))
+        d32 = np.ascontiguousarray(d.reshape(-1, 3).T.astype(np.float32))
+        ray = mi.Ray3f(mi.Point3f(*(mi.Float(x) for x in o32)), mi.Vector3f(*(mi.Float(x) for x in d32)))
+        blocked = np.asarray(self._scene.ray_test(ray).numpy(), bool).reshape(T, D, P)
+        seen = np.broadcast_to(((lit > 0) & (x1 - x0 > 2 * inset) & (y1 - y0 > 2 * inset))[..., None], blocked.shape)
+        some = (blocked & seen).any(axis=(1, 2))
+        free = (~blocked & seen).any(axis=(1, 2))
+        return out | (some & free)
 
     def _lit_fraction(self, k_, d_body):
         """Return the analytic wells' lit fractions (T,) for diodes k_ and body directions (T, 3)."""
