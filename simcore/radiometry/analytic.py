@@ -40,7 +40,7 @@ from simcore.radiometry import response as _resp
 from simcore.radiometry.albedo import check_geometry, sun_irradiance_w_m2
 from simcore.constants import E_SUN_W_M2, R_SUN_M
 from simcore.environment.maps import as_map
-from simcore.shapes.occlusion import box_hit, direct_visibility
+from simcore.shapes.occlusion import box_hit, pair_visibility
 
 _TWO_PI = 2.0 * np.pi
 
@@ -444,19 +444,15 @@ def _disc_directions(sun_body, offsets):
     return d / np.linalg.norm(d, axis=2, keepdims=True)
 
 
-def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None,
-                     rings=3, refine_rings=11):
-    """Return the direct-Sun response (N, K): the aperture response, times the body box's visibility,
-    averaged over the solar disc when it has a radius (its shadow edges are then soft, as traced).
+# Responses known to read exactly 0 for every direction with d_n <= 0 (behind the diode's plane): for these the
+# direct Sun is evaluated only where part of the solar disc lies in front of the diode.
+_DARK_BEHIND = (_resp.CosineResponse, _resp.ReflectionResponse, _resp.Eq415Response, _resp.WellAperture)
 
-    With ``earth_body_m`` (N, 3), the Earth's centre seen from the satellite in body axes, the
-    average runs over the part of the disc the Earth leaves visible (penumbra: the Earth's limb and an
-    aperture edge can cut the same disc); the caller multiplies by the exact visible fraction.
 
-    The disc is sampled by ``rings`` equal-area rings (37 points); where the response has a kink
-    inside the disc (the diode's horizon or the well's cut-off or full-light edge crosses it) the
-    average is taken again with ``refine_rings`` (397 points).
-    """
+def _disc_sample(sun_body, sun_angular_radius_rad, rings, earth_body_m=None, radius_m=None):
+    """Return (dirs (M, N, 3), weights (M, N), partial_earth (N,)): the solar-disc quadrature points around
+    each Sun direction, their weights (over the part the Earth leaves visible, normalised, divided by the
+    points' mean cos(alpha)) and whether the Earth's limb crosses the disc's points."""
     offsets = solar_disc_offsets(sun_angular_radius_rad, rings) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
     dirs = _disc_directions(sun_body, offsets)
     weights = np.ones(dirs.shape[:2])                                      # (M, N)
@@ -469,44 +465,44 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     # E_sun is the irradiance normal to the Sun's centre, int L cos(alpha) dOmega over the disc: the
     # responses' plain mean over the disc points carries their mean cos(alpha) ~ 1 - a^2/4, divided out.
     mean_cos_alpha = float(np.mean(1.0 / np.sqrt(1.0 + np.sum(offsets ** 2, axis=1))))
-    weights = weights / weights.sum(axis=0) / mean_cos_alpha
-    resp = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2)   # (M, N, K)
-    kink = np.zeros(resp.shape[1:], bool)
-    if len(dirs) > 1 and refine_rings > rings:
-        # Probe the disc's very edge too: the quadrature rings stop short of it.
-        ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
-        rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
-        probe = np.concatenate([dirs, rim])
-        for k, (r, f) in enumerate(zip(resps, frames)):
-            pr = r.response(probe @ f.T)
-            kink[:, k] = (pr == 0).any(axis=0) & (pr > 0).any(axis=0)
-            # The Earth's limb across the disc: its weights are then a coarse 37-point picture of the cut.
-            kink[:, k] |= partial_earth & (pr > 0).any(axis=0)
-            if isinstance(r, _resp.WellAperture) and r.height_m > 0:
-                lit = r.lit_fraction(probe @ f.T)
-                kink[:, k] |= (lit == 1).any(axis=0) & (lit < 1).any(axis=0)
+    return dirs, weights / weights.sum(axis=0) / mean_cos_alpha, partial_earth
 
-    def refined(out):
-        rows = np.flatnonzero(kink.any(axis=1))
-        if rows.size:
-            fine = _direct_response(sun_body[rows], frames, resps, body, sun_angular_radius_rad,
-                                    None if earth_body_m is None else earth_body_m[rows], radius_m,
-                                    rings=refine_rings, refine_rings=0)
-            out[rows] = np.where(kink[rows], fine, out[rows])
-        return out
+
+def _pair_response(resps, frames, diode, d):
+    """Return (lit, response), (M, T) each: the response of diode ``diode[t]`` toward the body-frame
+    directions ``d[:, t]`` (M, T, 3), and the lit fraction of its well (NaN for diodes without a well of
+    some height: their response has no full-light edge)."""
+    lit = np.full(d.shape[:2], np.nan)
+    resp = np.empty(d.shape[:2])
+    for k in np.unique(diode):
+        t = np.flatnonzero(diode == k)
+        dk = d[:, t] @ frames[k].T
+        r = resps[k]
+        if isinstance(r, _resp.WellAperture):
+            lit_k = r.lit_fraction(dk)
+            resp[:, t] = lit_k * np.clip(dk[..., 2], 0.0, None)          # = WellAperture.response, sharing lit
+            if r.height_m > 0:
+                lit[:, t] = lit_k
+        else:
+            resp[:, t] = r.response(dk)
+    return lit, resp
+
+
+def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings):
+    """Return (T,): the weighted mean over the disc points of each (epoch, diode) pair, ``dirs`` (M, T, 3),
+    ``weights`` and ``resp`` (M, T), diode ``diode[t]``, times the body box's visibility."""
     if body is None:
-        return refined(np.einsum("mn,mnk->nk", weights, resp))
-    if not all(isinstance(r, _resp.WellAperture) for r in resps):
-        raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture responses")
+        return np.einsum("mn,mn->n", weights, resp)
 
-    def vis(d, only=None):
-        return direct_visibility(resps, frames, body.positions_m, body.panel_normals, d, body.half_m, only)
+    def vis(k, d):
+        return pair_visibility(resps, frames, body.positions_m, body.panel_normals, k, d, body.half_m)
     # The box's shadow edge crosses the solar disc only for a few diode-epochs: find them from the
     # centre and six points spread around the outermost ring (6 r points), and average over the whole
     # disc there alone. Where the well lets no light through, visibility is undefined (NaN).
+    m, n = resp.shape
     n_ring = 6 * rings
-    probe = [0] + list(range(len(dirs) - n_ring, len(dirs), max(rings, 1))) if len(dirs) > 1 else [0]
-    v_probe = vis(dirs[probe].reshape(-1, 3)).reshape(len(probe), *resp.shape[1:])
+    probe = [0] + list(range(m - n_ring, m, max(rings, 1))) if m > 1 else [0]
+    v_probe = vis(np.tile(diode, len(probe)), dirs[probe].reshape(-1, 3)).reshape(len(probe), n)
     undefined = np.isnan(v_probe).any(axis=0)
     lo = np.where(np.isnan(v_probe), np.inf, v_probe).min(axis=0)
     hi = np.where(np.isnan(v_probe), -np.inf, v_probe).max(axis=0)
@@ -514,12 +510,63 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     partial = seen & (lo > 0) & (lo < 1)
     edge = (resp > 0).any(axis=0) & ((seen & (hi > lo)) | partial | undefined)
     v_all = np.broadcast_to(np.where(seen, lo, 1.0), resp.shape).copy()
-    if edge.any() and len(dirs) > 1:
-        # every disc point of the edge diode-epochs in one batch
-        m = len(dirs)
-        v = vis(dirs.reshape(-1, 3), only=np.broadcast_to(edge, (m, *edge.shape)).reshape(-1, edge.shape[1]))
-        v_all = np.where(edge[None], v.reshape(resp.shape), v_all)
-    return refined(np.einsum("mn,mnk->nk", weights, resp * np.nan_to_num(v_all, nan=1.0)))
+    if edge.any() and m > 1:
+        cols = np.flatnonzero(edge)                        # every disc point of the edge pairs, in one batch
+        v_all[:, cols] = vis(np.tile(diode[cols], m), dirs[:, cols].reshape(-1, 3)).reshape(m, len(cols))
+    return np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0))
+
+
+def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None,
+                     rings=3, refine_rings=11):
+    """Return the direct-Sun response (N, K): the aperture response, times the body box's visibility,
+    averaged over the solar disc when it has a radius (its shadow edges are then soft, as traced).
+
+    With ``earth_body_m`` (N, 3), the Earth's centre seen from the satellite in body axes, the
+    average runs over the part of the disc the Earth leaves visible (penumbra: the Earth's limb and an
+    aperture edge can cut the same disc); the caller multiplies by the exact visible fraction.
+
+    The disc is sampled by ``rings`` equal-area rings (37 points); where the response has a kink
+    inside the disc (the diode's horizon or the well's cut-off or full-light edge crosses it) the
+    average is taken again with ``refine_rings`` (397 points).
+
+    The work runs on (epoch, diode) pairs: only those with part of the disc in front of the diode
+    (the others read exactly 0 for the responses of :mod:`simcore.radiometry.response` and wells), and
+    the 397-point average only on the pairs with a kink.
+    """
+    if body is not None and not all(isinstance(r, _resp.WellAperture) for r in resps):
+        raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture responses")
+    n_ep, K = sun_body.shape[0], len(frames)
+    out = np.zeros((n_ep, K))
+    dirs, weights, partial_earth = _disc_sample(sun_body, sun_angular_radius_rad, rings, earth_body_m, radius_m)
+    # Every disc point d has d . n <= (s . n + a) / |s + offset| for the disc's angular radius a.
+    in_front = sun_body @ frames[:, 2].T > -(sun_angular_radius_rad + 1e-6)
+    in_front |= np.array([not isinstance(r, _DARK_BEHIND) for r in resps])[None]
+    diode, ep = np.nonzero(in_front.T)
+    if ep.size == 0:
+        return out
+    d = dirs[:, ep]
+    lit, resp = _pair_response(resps, frames, diode, d)
+    out[ep, diode] = _disc_mean(d, weights[:, ep], resp, diode, frames, resps, body, rings)
+    if len(dirs) == 1 or refine_rings <= rings:
+        return out
+    # Kinks: probe the disc's very edge too (the quadrature rings stop short of it).
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
+    lit_rim, resp_rim = _pair_response(resps, frames, diode, rim[:, ep])
+    lit_any = (resp > 0).any(axis=0) | (resp_rim > 0).any(axis=0)
+    kink = lit_any & ((resp == 0).any(axis=0) | (resp_rim == 0).any(axis=0) | partial_earth[ep])
+    # the well's full-light edge
+    kink |= ((lit == 1).any(axis=0) | (lit_rim == 1).any(axis=0)) & ((lit < 1).any(axis=0) | (lit_rim < 1).any(axis=0))
+    if not kink.any():
+        return out
+    ep, diode = ep[kink], diode[kink]
+    rows, at = np.unique(ep, return_inverse=True)
+    fine_dirs, fine_weights, _ = _disc_sample(sun_body[rows], sun_angular_radius_rad, refine_rings,
+                                              None if earth_body_m is None else earth_body_m[rows], radius_m)
+    d = fine_dirs[:, at]
+    out[ep, diode] = _disc_mean(d, fine_weights[:, at], _pair_response(resps, frames, diode, d)[1], diode,
+                                frames, resps, body, refine_rings)
+    return out
 
 
 # ---- public entry point ---------------------------------------------------------------------
@@ -589,11 +636,14 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     R_body_from_ecef = np.ascontiguousarray(np.swapaxes(R, 1, 2))
     sun_body = np.einsum("nij,nj->ni", R_body_from_ecef, to_sun)
     earth_body = np.einsum("nij,nj->ni", R_body_from_ecef, -r_sat) if eclipse == "conical" else None
-    direct = (_direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body, refl.radius_m)
-              if direct else np.zeros((n_ep, frames.shape[0])))
+    response = np.zeros((n_ep, frames.shape[0]))
+    on = np.flatnonzero(lit > 0) if direct else np.zeros(0, int)     # in the Earth's umbra the direct Sun is 0
+    if on.size:
+        response[on] = _direct_response(sun_body[on], frames, resps, body, sun_angular_radius_rad,
+                                        None if earth_body is None else earth_body[on], refl.radius_m)
     # 1/r^2 for the direct Sun over the satellite -> Sun distance; the Earth's cells use the geocentric one.
     e_direct = sun_irradiance_w_m2(r_sun - r_sat, e_sun_w_m2, distance_scaling)
-    direct = direct * (e_direct * lit)[:, None]
+    direct = response * (e_direct * lit)[:, None]
 
     alb = np.zeros((n_ep, frames.shape[0]))
     if visibility is not None and visibility.mask.shape[0] != frames.shape[0]:

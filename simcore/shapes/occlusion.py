@@ -162,6 +162,25 @@ def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
     return float(lit_fractions_with_box(params, [frame], [position_m], [d_body], half_m)[0])
 
 
+def _aperture_params(apertures):
+    """Return (K, 5): half diode sides, half opening sides and well height (m) of each aperture."""
+    return np.array([[a.diode_x_m / 2, a.diode_y_m / 2, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
+                     for a in apertures])
+
+
+def _visibility_below(params, frames, positions_m, d, half_m):
+    """Return (T,): lit fraction with the box over the well's own lit fraction for T diodes (``params``
+    (T, 5), ``frames`` (T, 3, 3), ``positions_m`` (T, 3)) each toward its own direction ``d`` (T, 3) below
+    its panel and in front of it; NaN where the well itself lets no light through."""
+    dd = np.einsum("tij,tj->ti", frames, d)                     # the directions in the diode frames
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        own = lit_rectangle(*params.T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
+    vis = np.full(len(d), np.nan)
+    lit = own > 0
+    vis[lit] = lit_fractions_with_box(params[lit], frames[lit], positions_m[lit], d[lit], half_m) / own[lit]
+    return vis
+
+
 def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, half_m, only=None):
     """Return (N, K): lit fraction with the body box over the well's own lit fraction (1 where the box
     blocks nothing, 0 where it hides the whole lit area), for unit Sun directions ``d_body`` (N, 3);
@@ -176,15 +195,24 @@ def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, hal
     if not todo.any():
         return vis
     n_idx, k_idx = np.nonzero(todo)
-    params = np.array([[a.diode_x_m / 2, a.diode_y_m / 2, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
-                       for a in apertures])
     frames = np.asarray(frames, float)
-    dd = np.einsum("tij,tj->ti", frames[k_idx], d[n_idx])       # the pairs' directions in diode frames
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        own = lit_rectangle(*params[k_idx].T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
-    dark = own <= 0
-    vis[n_idx[dark], k_idx[dark]] = np.nan
-    n_idx, k_idx, own = n_idx[~dark], k_idx[~dark], own[~dark]
-    vis[n_idx, k_idx] = lit_fractions_with_box(params[k_idx], frames[k_idx], np.asarray(positions_m, float)[k_idx],
-                                               d[n_idx], half_m) / own
+    vis[n_idx, k_idx] = _visibility_below(_aperture_params(apertures)[k_idx], frames[k_idx],
+                                          np.asarray(positions_m, float)[k_idx], d[n_idx], half_m)
+    return vis
+
+
+def pair_visibility(apertures, frames, positions_m, panel_normals, diode, d_body, half_m):
+    """Return (T,): the visibility of :func:`direct_visibility` for T (diode, direction) pairs, diode
+    ``diode[t]`` (index into the K ``apertures``, ``frames``, ``positions_m``, ``panel_normals``) toward the
+    unit direction ``d_body[t]`` (body frame); 1 where the box cannot block, NaN where the well is dark."""
+    d = np.asarray(d_body, float).reshape(-1, 3)
+    k = np.asarray(diode, dtype=np.int64).reshape(-1)
+    frames = np.asarray(frames, float)
+    vis = np.ones(len(d))
+    below = np.einsum("tj,tj->t", d, np.asarray(panel_normals, float)[k]) < 0
+    front = np.einsum("tj,tj->t", d, frames[k, 2]) > 0
+    t = np.flatnonzero(below & front)
+    if t.size:
+        vis[t] = _visibility_below(_aperture_params(apertures)[k[t]], frames[k[t]],
+                                   np.asarray(positions_m, float)[k[t]], d[t], half_m)
     return vis

@@ -1,0 +1,230 @@
+"""The pair-wise direct-Sun reference against the code it replaced, number for number.
+
+``_direct_response`` (simcore/radiometry/analytic.py) used to evaluate every diode at every epoch over
+the 37-point solar disc, refine whole epochs to 397 points and call ``direct_visibility`` on the whole
+(epoch, diode) grid. It now works on (epoch, diode) pairs: only those with part of the disc in front
+of the diode, the 397-point average only where a kink crosses the disc, the body box on pairs, and
+``diode_irradiance`` skips the epochs in the Earth's umbra. None of that may change a number: the
+oracle is the previous implementation, frozen below as it stood at commit b0978e6 (only renamed), and
+the two must agree to 1e-12 relative (1e-15 absolute of the unit response: the clipped polygon areas
+leave ~1e-16 of rounding where the body hides a diode whole).
+"""
+import numpy as np
+import pytest
+
+from scenes.config import SatelliteConfig
+from simcore.constants import R_EARTH_MEAN_M, R_SUN_M, AU_M
+from simcore.radiometry import response as _resp
+from simcore.radiometry.analytic import (BodyBox, _direct_response, _disc_directions, diode_irradiance,
+                                         solar_disc_offsets)
+from simcore.radiometry.response import CosineResponse, Eq415Response, ReflectionResponse
+from simcore.shapes.aperture import lit_rectangle
+from simcore.shapes.occlusion import lit_fractions_with_box
+
+RTOL, ATOL = 1e-12, 1e-15
+SUN_RADIUS = float(np.arcsin(R_SUN_M / AU_M))          # 4.65 mrad
+
+
+# ---- the oracle: b0978e6's direct_visibility and _direct_response, verbatim but for their names ----
+def _old_direct_visibility(apertures, frames, positions_m, panel_normals, d_body, half_m, only=None):
+    d = np.atleast_2d(np.asarray(d_body, float))
+    N, K = d.shape[0], len(frames)
+    vis = np.ones((N, K))
+    below = d @ np.asarray(panel_normals, float).T < 0
+    front = np.einsum("nj,kj->nk", d, np.asarray(frames)[:, 2]) > 0
+    todo = below & front if only is None else below & front & only
+    if not todo.any():
+        return vis
+    n_idx, k_idx = np.nonzero(todo)
+    params = np.array([[a.diode_x_m / 2, a.diode_y_m / 2, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
+                       for a in apertures])
+    frames = np.asarray(frames, float)
+    dd = np.einsum("tij,tj->ti", frames[k_idx], d[n_idx])
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        own = lit_rectangle(*params[k_idx].T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
+    dark = own <= 0
+    vis[n_idx[dark], k_idx[dark]] = np.nan
+    n_idx, k_idx, own = n_idx[~dark], k_idx[~dark], own[~dark]
+    vis[n_idx, k_idx] = lit_fractions_with_box(params[k_idx], frames[k_idx], np.asarray(positions_m, float)[k_idx],
+                                               d[n_idx], half_m) / own
+    return vis
+
+
+def _old_direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None,
+                         rings=3, refine_rings=11):
+    offsets = solar_disc_offsets(sun_angular_radius_rad, rings) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
+    dirs = _disc_directions(sun_body, offsets)
+    weights = np.ones(dirs.shape[:2])
+    if earth_body_m is not None and len(dirs) > 1:
+        along = np.einsum("mnj,nj->mn", dirs, earth_body_m)
+        miss2 = np.einsum("nj,nj->n", earth_body_m, earth_body_m)[None] - along ** 2
+        weights = ~((along > 0) & (miss2 < radius_m ** 2))
+        weights = np.where(weights.any(axis=0), weights, True).astype(float)
+    partial_earth = (weights != weights[:1]).any(axis=0) if len(dirs) > 1 else np.zeros(weights.shape[1], bool)
+    mean_cos_alpha = float(np.mean(1.0 / np.sqrt(1.0 + np.sum(offsets ** 2, axis=1))))
+    weights = weights / weights.sum(axis=0) / mean_cos_alpha
+    resp = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2)
+    kink = np.zeros(resp.shape[1:], bool)
+    if len(dirs) > 1 and refine_rings > rings:
+        ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+        rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
+        probe = np.concatenate([dirs, rim])
+        for k, (r, f) in enumerate(zip(resps, frames)):
+            pr = r.response(probe @ f.T)
+            kink[:, k] = (pr == 0).any(axis=0) & (pr > 0).any(axis=0)
+            kink[:, k] |= partial_earth & (pr > 0).any(axis=0)
+            if isinstance(r, _resp.WellAperture) and r.height_m > 0:
+                lit = r.lit_fraction(probe @ f.T)
+                kink[:, k] |= (lit == 1).any(axis=0) & (lit < 1).any(axis=0)
+
+    def refined(out):
+        rows = np.flatnonzero(kink.any(axis=1))
+        if rows.size:
+            fine = _old_direct_response(sun_body[rows], frames, resps, body, sun_angular_radius_rad,
+                                        None if earth_body_m is None else earth_body_m[rows], radius_m,
+                                        rings=refine_rings, refine_rings=0)
+            out[rows] = np.where(kink[rows], fine, out[rows])
+        return out
+    if body is None:
+        return refined(np.einsum("mn,mnk->nk", weights, resp))
+
+    def vis(d, only=None):
+        return _old_direct_visibility(resps, frames, body.positions_m, body.panel_normals, d, body.half_m, only)
+    n_ring = 6 * rings
+    probe = [0] + list(range(len(dirs) - n_ring, len(dirs), max(rings, 1))) if len(dirs) > 1 else [0]
+    v_probe = vis(dirs[probe].reshape(-1, 3)).reshape(len(probe), *resp.shape[1:])
+    undefined = np.isnan(v_probe).any(axis=0)
+    lo = np.where(np.isnan(v_probe), np.inf, v_probe).min(axis=0)
+    hi = np.where(np.isnan(v_probe), -np.inf, v_probe).max(axis=0)
+    seen = np.isfinite(lo)
+    partial = seen & (lo > 0) & (lo < 1)
+    edge = (resp > 0).any(axis=0) & ((seen & (hi > lo)) | partial | undefined)
+    v_all = np.broadcast_to(np.where(seen, lo, 1.0), resp.shape).copy()
+    if edge.any() and len(dirs) > 1:
+        m = len(dirs)
+        v = vis(dirs.reshape(-1, 3), only=np.broadcast_to(edge, (m, *edge.shape)).reshape(-1, edge.shape[1]))
+        v_all = np.where(edge[None], v.reshape(resp.shape), v_all)
+    return refined(np.einsum("mn,mnk->nk", weights, resp * np.nan_to_num(v_all, nan=1.0)))
+# ---- end of the oracle ----
+
+
+def _unit(v):
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _rotate_towards(a, b, angle):
+    """Return unit vectors at ``angle`` (rad) from the unit vectors ``a`` (N, 3), in the plane of a and b."""
+    perp = _unit(b - np.einsum("nj,nj->n", b, a)[:, None] * a)
+    return np.cos(angle)[:, None] * a + np.sin(angle)[:, None] * perp
+
+
+def _hard_directions(cfg, rng, n_each=40):
+    """Return (N, 3) unit Sun directions in body axes: random ones, and ones placed on every kind of
+    edge the solar disc can straddle: a diode's horizon, its well's cut-off and full-light angles, a
+    panel's plane (where the body box starts to shade the tilted diodes)."""
+    half_cut = []
+    for dio in cfg.diodes:
+        ap = dio.aperture
+        a, w, h = ap.diode_x_m / 2, ap.opening_x_m / 2, ap.height_m
+        cut, full = np.arctan((w + a) / h), np.arctan((w - a) / h)    # along a wall axis (aperture.py)
+        half_cut.append((dio.frame_body, cut, full))
+    out = [_unit(rng.normal(size=(200, 3)))]
+    for frame, cut, full in half_cut:
+        u, v, n = frame
+        for polar in (np.pi / 2, cut, full):
+            # along a wall axis, along the diagonal, and anywhere, each within a disc radius of the edge
+            az = np.concatenate([np.zeros(n_each // 4), np.full(n_each // 4, np.pi / 4),
+                                 rng.uniform(0, 2 * np.pi, n_each // 2)])
+            p = polar + rng.uniform(-1.5, 1.5, az.size) * SUN_RADIUS
+            out.append(np.sin(p)[:, None] * (np.cos(az)[:, None] * u + np.sin(az)[:, None] * v)
+                       + np.cos(p)[:, None] * n)
+    for p in BodyBox.from_config(cfg).panel_normals[::3]:
+        d = _unit(rng.normal(size=(n_each, 3)))
+        d = _unit(d - np.outer(d @ p, p))                  # in the panel's plane...
+        out.append(_unit(d + rng.uniform(-1.5, 1.5, (n_each, 1)) * SUN_RADIUS * p))   # ...within a disc of it
+    return _unit(np.concatenate(out))
+
+
+def _earth_cutting_the_disc(sun, rng, altitude_m=600e3):
+    """Return (N, 3) Earth centres seen from the satellite (body axes, m): the Earth's limb a random
+    fraction of a disc radius from the Sun's centre, so half the disc is eaten, on either side."""
+    r = R_EARTH_MEAN_M + altitude_m
+    limb = np.arcsin(R_EARTH_MEAN_M / r)
+    sep = limb + rng.uniform(-1.2, 1.2, len(sun)) * SUN_RADIUS
+    return r * _rotate_towards(sun, _unit(rng.normal(size=sun.shape)), sep)
+
+
+def _agree(new, old):
+    np.testing.assert_allclose(new, old, rtol=RTOL, atol=ATOL)
+
+
+@pytest.mark.parametrize("config", ["tilt20_fov70", "tilt25_fov75"])
+def test_pairwise_direct_equals_the_previous_code_on_every_edge(config, rng):
+    cfg = SatelliteConfig.load(config)
+    body = BodyBox.from_config(cfg)
+    sun = _hard_directions(cfg, rng)
+    earth = _earth_cutting_the_disc(sun, rng)
+    frames, resps = cfg.frames, cfg.apertures
+    cases = {
+        "disc, body": (body, SUN_RADIUS, None),
+        "disc, body, penumbra": (body, SUN_RADIUS, earth),
+        "disc, no body, penumbra": (None, SUN_RADIUS, earth),
+        "point Sun, body": (body, 0.0, None),
+    }
+    for name, (b, radius, e) in cases.items():
+        new = _direct_response(sun, frames, resps, b, radius, e, R_EARTH_MEAN_M)
+        old = _old_direct_response(sun, frames, resps, b, radius, e, R_EARTH_MEAN_M)
+        _agree(new, old)
+    # The cases did reach every branch: lit and dark pairs, kinks refined, the box's shadow edges.
+    assert 0.1 < np.mean(old > 0) < 0.9
+    dirs = _disc_directions(sun, solar_disc_offsets(SUN_RADIUS))
+    resp = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2)
+    straddling = (resp > 0).any(axis=0) & (resp == 0).any(axis=0)
+    assert straddling.sum() > 200
+    shade = _old_direct_visibility(resps, frames, body.positions_m, body.panel_normals, dirs.reshape(-1, 3),
+                                   body.half_m).reshape(resp.shape)
+    lo = np.where(np.isnan(shade), np.inf, shade).min(axis=0)
+    hi = np.where(np.isnan(shade), -np.inf, shade).max(axis=0)
+    assert (np.isfinite(lo) & (hi > lo)).sum() > 20        # the box's shadow edge across the disc
+
+
+def test_pairwise_direct_with_other_responses(rng):
+    # Responses without a well, one a user's object the code knows nothing of (evaluated everywhere).
+    class Squared:
+        def response(self, d):
+            return np.clip(np.asarray(d)[..., 2], 0, None) ** 2 + 0.01 * (np.asarray(d)[..., 2] > -0.2)
+
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    frames = cfg.frames[:5]
+    resps = [CosineResponse(), Eq415Response(70.0), ReflectionResponse(-0.25), Squared(), cfg.apertures[4]]
+    sun = _hard_directions(cfg, rng, n_each=8)
+    earth = _earth_cutting_the_disc(sun, rng)
+    for radius, e in ((SUN_RADIUS, None), (SUN_RADIUS, earth), (0.0, None)):
+        _agree(_direct_response(sun, frames, resps, None, radius, e, R_EARTH_MEAN_M),
+               _old_direct_response(sun, frames, resps, None, radius, e, R_EARTH_MEAN_M))
+
+
+def test_diode_irradiance_direct_over_an_eclipse_exit_equals_the_previous_code():
+    # The default study's orbit across the exit from the Earth's shadow: umbra (skipped), penumbra, sunlit.
+    from simcore.pipeline.run import PreparedRun, RunOptions
+    st = PreparedRun(RunOptions(duration_s=2000.0))
+    g = st.geometry
+    lit = g.illumination
+    exit_ = int(np.flatnonzero((lit[:-1] < 1) & (lit[1:] == 1))[0])
+    sl = slice(max(0, exit_ - 300), exit_ + 300)
+    assert (lit[sl] == 0).any() and ((lit[sl] > 0) & (lit[sl] < 1)).sum() >= 5 and (lit[sl] == 1).any()
+    body = BodyBox.from_config(st.config)
+    a = diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl], st.config.frames,
+                         st.config.apertures, e_sun_w_m2=1361.0, distance_scaling=True, eclipse="conical",
+                         body=body, sun_angular_radius_rad=st.sun_angular_radius_rad, albedo=False)
+    R_bt = np.swapaxes(g.R_ecef_from_body[sl], 1, 2)
+    r_sat, r_sun = g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl]
+    sun_body = np.einsum("nij,nj->ni", R_bt, _unit(r_sun - r_sat))
+    earth_body = np.einsum("nij,nj->ni", R_bt, -r_sat)
+    old = _old_direct_response(sun_body, st.config.frames, st.config.apertures, body, st.sun_angular_radius_rad,
+                               earth_body, R_EARTH_MEAN_M)
+    e_direct = 1361.0 * (AU_M / np.linalg.norm(r_sun - r_sat, axis=1)) ** 2
+    np.testing.assert_allclose(a.direct_w_m2, old * (e_direct * a.illuminated_fraction)[:, None],
+                               rtol=RTOL, atol=ATOL * 1361.0)
+    assert np.all(a.direct_w_m2[a.illuminated_fraction == 0] == 0)
