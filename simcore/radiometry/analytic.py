@@ -488,32 +488,66 @@ def _pair_response(resps, frames, diode, d):
     return lit, resp
 
 
-def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings):
-    """Return (T,): the weighted mean over the disc points of each (epoch, diode) pair, ``dirs`` (M, T, 3),
-    ``weights`` and ``resp`` (M, T), diode ``diode[t]``, times the body box's visibility."""
+def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None):
+    """Return ((T,), (T,) bool): the weighted mean over the disc points of each (epoch, diode) pair, ``dirs``
+    (M, T, 3), ``weights`` and ``resp`` (M, T), diode ``diode[t]``, times the body box's visibility; and
+    whether the box's shadow edge crosses the pair's disc (found from the centre, six points of the
+    outermost ring and the ``rim`` directions (R, T, 3), if given)."""
+    m, n = resp.shape
     if body is None:
-        return np.einsum("mn,mn->n", weights, resp)
+        return np.einsum("mn,mn->n", weights, resp), np.zeros(n, bool)
 
     def vis(k, d):
         return pair_visibility(resps, frames, body.positions_m, body.panel_normals, k, d, body.half_m)
     # The box's shadow edge crosses the solar disc only for a few diode-epochs: find them from the
-    # centre and six points spread around the outermost ring (6 r points), and average over the whole
-    # disc there alone. Where the well lets no light through, visibility is undefined (NaN).
-    m, n = resp.shape
+    # centre, six points spread around the outermost ring (6 r points) and the disc's very rim, and average
+    # over the whole disc there alone. Where the well lets no light through, visibility is undefined (NaN).
     n_ring = 6 * rings
     probe = [0] + list(range(m - n_ring, m, max(rings, 1))) if m > 1 else [0]
-    v_probe = vis(np.tile(diode, len(probe)), dirs[probe].reshape(-1, 3)).reshape(len(probe), n)
+    pd = dirs[probe] if rim is None else np.concatenate([dirs[probe], rim])
+    v_probe = vis(np.tile(diode, len(pd)), pd.reshape(-1, 3)).reshape(len(pd), n)
     undefined = np.isnan(v_probe).any(axis=0)
     lo = np.where(np.isnan(v_probe), np.inf, v_probe).min(axis=0)
     hi = np.where(np.isnan(v_probe), -np.inf, v_probe).max(axis=0)
     seen = np.isfinite(lo)
     partial = seen & (lo > 0) & (lo < 1)
-    edge = (resp > 0).any(axis=0) & ((seen & (hi > lo)) | partial | undefined)
+    edge = ((resp > 0).any(axis=0) | (hi > 0)) & ((seen & (hi > lo)) | partial | undefined)
     v_all = np.broadcast_to(np.where(seen, lo, 1.0), resp.shape).copy()
     if edge.any() and m > 1:
         cols = np.flatnonzero(edge)                        # every disc point of the edge pairs, in one batch
         v_all[:, cols] = vis(np.tile(diode[cols], m), dirs[:, cols].reshape(-1, 3)).reshape(m, len(cols))
-    return np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0))
+    return np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0)), edge & (m > 1)
+
+
+# The body box's shadow edge across the solar disc: Gauss-Legendre in the disc's area coordinate (r/a)^2 x
+# equally spaced azimuths. A shadow that leaves a sliver of the disc's rim lit (depth 1 % of the radius,
+# 0.1 % of the disc) falls between the equal-area rings' points (the outermost of 11 rings sits at 0.98 of
+# the radius); the outermost of 16 Gauss nodes sits at 0.9973, and 64 azimuths resolve a sliver 16 deg wide.
+_EDGE_RADIAL, _EDGE_AZIMUTHS = 16, 64
+
+
+def _polar_disc_offsets(radius_rad, n_r=_EDGE_RADIAL, n_phi=_EDGE_AZIMUTHS):
+    """Return (M, 2) tangent-plane offsets (rad) and (M,) weights (sum 1) of a product quadrature over a
+    uniform disc: Gauss-Legendre in (r / radius)^2 (the area coordinate) times ``n_phi`` azimuths."""
+    x, w = np.polynomial.legendre.leggauss(n_r)
+    r = radius_rad * np.sqrt(0.5 * (x + 1.0))
+    ph = 2.0 * np.pi * (np.arange(n_phi) + 0.5) / n_phi
+    off = np.stack([np.outer(r, np.cos(ph)).ravel(), np.outer(r, np.sin(ph)).ravel()], axis=1)
+    return off, np.repeat(0.5 * w, n_phi) / n_phi
+
+
+def _edge_mean(sun_body, radius_rad, diode, frames, resps, body):
+    """Return (T,): the disc mean of the response times the body box's visibility for (sun_body[t], diode[t])
+    pairs by the product quadrature of :func:`_polar_disc_offsets` (a disc the Earth does not cut)."""
+    off, w = _polar_disc_offsets(radius_rad)
+    d = _disc_directions(sun_body, off)                                       # (M, T, 3)
+    wt = np.broadcast_to(w[:, None], d.shape[:2])
+    cos_alpha = 1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))
+    wt = wt / wt.sum(axis=0) / float(np.sum(w * cos_alpha))
+    resp = _pair_response(resps, frames, diode, d)[1]
+    v = pair_visibility(resps, frames, body.positions_m, body.panel_normals, np.tile(diode, len(d)),
+                        d.reshape(-1, 3), body.half_m).reshape(resp.shape)
+    return np.einsum("mn,mn->n", wt, resp * np.nan_to_num(v, nan=1.0))
 
 
 def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None,
@@ -527,7 +561,9 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
 
     The disc is sampled by ``rings`` equal-area rings (37 points); where the response has a kink
     inside the disc (the diode's horizon or the well's cut-off or full-light edge crosses it) the
-    average is taken again with ``refine_rings`` (397 points).
+    average is taken again with ``refine_rings`` (397 points); where the body box's shadow edge crosses
+    it (probed at 32 points of its rim too) and the Earth does not, with the product quadrature of
+    :func:`_polar_disc_offsets` (1024 points reaching 0.997 of the radius).
 
     The work runs on (epoch, diode) pairs: only those with part of the disc in front of the diode
     (the others read exactly 0 for the responses of :mod:`simcore.radiometry.response` and wells), and
@@ -546,9 +582,25 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         return out
     d = dirs[:, ep]
     lit, resp = _pair_response(resps, frames, diode, d)
-    out[ep, diode] = _disc_mean(d, weights[:, ep], resp, diode, frames, resps, body, rings)
+    edge_probe = None
+    if len(dirs) > 1:
+        ang = 2.0 * np.pi * np.arange(32) / 32
+        edge_probe = _disc_directions(sun_body, 0.999 * sun_angular_radius_rad
+                                      * np.column_stack([np.cos(ang), np.sin(ang)]))[:, ep]
+    out[ep, diode], edge = _disc_mean(d, weights[:, ep], resp, diode, frames, resps, body, rings, edge_probe)
     if len(dirs) == 1 or refine_rings <= rings:
         return out
+    if earth_body_m is not None:
+        # where the Earth's limb cuts the disc too, the 397-point refinement below weighs the visible points
+        dist = np.linalg.norm(earth_body_m, axis=1)
+        sep = np.arccos(np.clip(np.einsum("nj,nj->n", sun_body, earth_body_m) / dist, -1.0, 1.0))
+        limb = np.arcsin(np.minimum(radius_m / dist, 1.0))
+        edge &= ~(np.abs(sep - limb) < sun_angular_radius_rad)[ep]
+    if edge.any():
+        # the body's shadow edge across the disc: the product quadrature (:data:`_EDGE_RADIAL`)
+        e_ep, e_k = ep[edge], diode[edge]
+        out[e_ep, e_k] = _edge_mean(sun_body[e_ep], sun_angular_radius_rad, e_k, frames, resps, body)
+        ep, diode, lit, resp = ep[~edge], diode[~edge], lit[:, ~edge], resp[:, ~edge]
     # Kinks: probe the disc's very edge too (the quadrature rings stop short of it).
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
     rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
@@ -565,7 +617,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
                                               None if earth_body_m is None else earth_body_m[rows], radius_m)
     d = fine_dirs[:, at]
     out[ep, diode] = _disc_mean(d, fine_weights[:, at], _pair_response(resps, frames, diode, d)[1], diode,
-                                frames, resps, body, refine_rings)
+                                frames, resps, body, refine_rings)[0]
     return out
 
 
