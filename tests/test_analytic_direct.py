@@ -166,7 +166,7 @@ def _agree(new, old):
 def _dense_disc(sun, frames, resps, body, rings=40, radius=SUN_RADIUS):
     """Return ((N, K) the direct response averaged over the solar disc by 40 equal-area rings (4921 points)
     with the box's exact visibility, (N, K) bool: the box's shadow edge crosses the disc (its 4921 points
-    or 64 points of its very rim disagree))."""
+    or 64 points of its very rim disagree) or the diode's horizon does)."""
     off = solar_disc_offsets(radius, rings)
     ang = 2 * np.pi * np.arange(64) / 64
     rim = radius * np.column_stack([np.cos(ang), np.sin(ang)])
@@ -177,6 +177,7 @@ def _dense_disc(sun, frames, resps, body, rings=40, radius=SUN_RADIUS):
     lo = np.where(np.isnan(v), np.inf, v).min(axis=0)
     hi = np.where(np.isnan(v), -np.inf, v).max(axis=0)
     edge = (np.isfinite(lo) & (hi > lo)) | (np.isnan(v).any(axis=0) & (v > 0).any(axis=0))
+    edge |= np.abs(sun @ np.asarray(frames)[:, 2].T) < np.sin(radius)        # the diode's horizon across it
     m = len(off)
     mean_cos = np.mean(1 / np.sqrt(1 + np.sum(off ** 2, axis=1)))
     return np.mean(resp[:m] * np.nan_to_num(v[:m], nan=1.0), axis=0) / mean_cos, edge
@@ -248,9 +249,23 @@ def test_pairwise_direct_with_other_responses(rng):
     resps = [CosineResponse(), Eq415Response(70.0), ReflectionResponse(-0.25), Squared(), cfg.apertures[4]]
     sun = _hard_directions(cfg, rng, n_each=8)
     earth = _earth_cutting_the_disc(sun, rng)
+    off = solar_disc_offsets(SUN_RADIUS, 40)
+    dirs = _disc_directions(sun, off)
+    dense = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2).mean(axis=0) \
+        / np.mean(1 / np.sqrt(1 + np.sum(off ** 2, axis=1)))
+    horizon = np.abs(sun @ frames[:, 2].T) < np.sin(SUN_RADIUS)
+    dist = np.linalg.norm(earth, axis=1)
+    sep = np.arccos(np.clip(np.einsum("nj,nj->n", sun, earth) / dist, -1, 1))
+    cut = (np.abs(sep - np.arcsin(R_EARTH_MEAN_M / dist)) < SUN_RADIUS)[:, None]
     for radius, e in ((SUN_RADIUS, None), (SUN_RADIUS, earth), (0.0, None)):
-        _agree(_direct_response(sun, frames, resps, None, radius, e, R_EARTH_MEAN_M),
-               _old_direct_response(sun, frames, resps, None, radius, e, R_EARTH_MEAN_M))
+        new = _direct_response(sun, frames, resps, None, radius, e, R_EARTH_MEAN_M)
+        old = _old_direct_response(sun, frames, resps, None, radius, e, R_EARTH_MEAN_M)
+        # the diode's horizon across a disc the Earth does not cut: the product rule (the dense rule's oracle)
+        new_rule = horizon & ~cut if e is not None else (horizon if radius > 0 else np.zeros_like(horizon))
+        _agree(new[~new_rule], old[~new_rule])
+        if e is None and radius > 0:
+            assert new_rule.sum() > 20
+            np.testing.assert_allclose(new[new_rule], dense[new_rule], rtol=0, atol=2e-5)
 
 
 def test_diode_irradiance_direct_over_an_eclipse_exit_equals_the_previous_code():

@@ -15,7 +15,13 @@ error ``delta``. Three components are checked:
   numbers: an estimate that shares nothing with the analytic model, so a wrong
   aperture response or body shadow shows here whatever the hinted estimate does;
 * ``albedo``: against the Bhanderi cell sum on the map refined ``factor`` x
-  ``factor`` (see :func:`discretisation_bound`).
+  ``factor`` (see :func:`discretisation_bound`). Where shadows of the body or of
+  other parts of the satellite cross a diode (directions where traced probe rays
+  disagree with the body box held at the diode's centre), the cell sum takes the
+  diode's visible share traced against the mesh instead, a deterministic
+  quadrature whose estimated error joins the variance
+  (``simcore.radiometry.analytic.DirectionVisibility``; run file
+  ``albedo_mesh``, ``albedo_visibility_error``).
 
 For each component four families of tests, over the diode-epochs whose
 standard error is positive. The others are tested one by one: a value the
