@@ -78,7 +78,8 @@ def repeated(a):
     """Make the measurement ``a.repeat`` times, each in a fresh process; print each and the medians."""
     results = []
     for i in range(a.repeat):
-        cmd = [sys.executable, os.path.abspath(__file__)] + ([] if a.duration is None else ["--duration", str(a.duration)])
+        cmd = [sys.executable, os.path.abspath(__file__)]
+        cmd += [] if a.duration is None else ["--duration", str(a.duration)]
         out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
         results.append(json.loads(out.strip().splitlines()[-1]))
         print(f"measurement {i + 1}/{a.repeat}: " + " | ".join(out.strip().splitlines()[1:4]), flush=True)
