@@ -7,15 +7,22 @@ the analytic reference and check, and the netCDF file, timed through the command
 alone: building it and rendering every chunk, nothing else. Their ratio is what the check,
 the orbit set-up and the writing cost on top of the rendering.
 
-    .venv/bin/python benchmarks/bench_run.py [--duration S]
+    .venv/bin/python benchmarks/bench_run.py [--duration S] [--repeat N]
 
-Last line: one JSON object with run_ms_per_epoch, render_ms_per_epoch and ratio.
+Last line: one JSON object with run_ms_per_epoch, render_ms_per_epoch and ratio, and the machine's
+1-minute load average when it started. On a shared 2-core machine another process on the cores moves
+the ratio by up to +-0.4 from one measurement to the next (it slows one figure and not the other):
+``--repeat N`` makes the same measurement N times, each in a fresh process (both figures as cold as
+in one), and its last line holds the medians (the ratio: the median of the N ratios) and every ratio.
 """
 import argparse
 import contextlib
 import io
 import json
 import os
+import statistics
+import subprocess
+import sys
 import tempfile
 import time
 
@@ -27,7 +34,11 @@ from simcore.pipeline.store import chunk_ranges
 def main_bench(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--duration", type=float, default=None, help="seconds of orbit (default: one period)")
+    ap.add_argument("--repeat", type=int, default=1, help="measurements, each in a fresh process (default 1)")
     a = ap.parse_args(argv)
+    if a.repeat > 1:
+        return repeated(a)
+    load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         run_args = ["run", "-o", os.path.join(tmp, "run.nc")]
         if a.duration is not None:
@@ -57,8 +68,28 @@ def main_bench(argv=None):
           f"{out.getvalue().splitlines()[2].strip() if len(out.getvalue().splitlines()) > 2 else ''})")
     print(f"renderer alone:  {t_render:7.1f} s = {1e3 * t_render / n:6.2f} ms per epoch")
     print(f"ratio run / render: {t_run / t_render:.2f}")
+    print(f"load average (1 min) at the start: {load_before:.2f} on {os.cpu_count()} cores")
     print(json.dumps({"epochs": n, "run_ms_per_epoch": round(1e3 * t_run / n, 3),
-                      "render_ms_per_epoch": round(1e3 * t_render / n, 3), "ratio": round(t_run / t_render, 3)}))
+                      "render_ms_per_epoch": round(1e3 * t_render / n, 3), "ratio": round(t_run / t_render, 3),
+                      "load_at_start": round(load_before, 2)}))
+
+
+def repeated(a):
+    """Make the measurement ``a.repeat`` times, each in a fresh process; print each and the medians."""
+    results = []
+    for i in range(a.repeat):
+        cmd = [sys.executable, os.path.abspath(__file__)]
+        cmd += [] if a.duration is None else ["--duration", str(a.duration)]
+        out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+        results.append(json.loads(out.strip().splitlines()[-1]))
+        print(f"measurement {i + 1}/{a.repeat}: " + " | ".join(out.strip().splitlines()[1:4]), flush=True)
+    med = {k: statistics.median(r[k] for r in results) for k in ("run_ms_per_epoch", "render_ms_per_epoch", "ratio")}
+    print(f"median of {a.repeat}: sunsim run {med['run_ms_per_epoch']:.2f} ms, renderer alone "
+          f"{med['render_ms_per_epoch']:.2f} ms per epoch, ratio {med['ratio']:.2f} "
+          f"(ratios {', '.join(format(r['ratio'], '.2f') for r in results)})")
+    print(json.dumps({"epochs": results[0]["epochs"], **{k: round(v, 3) for k, v in med.items()},
+                      "ratios": [r["ratio"] for r in results], "load_at_start": [r["load_at_start"] for r in results],
+                      "repeat": a.repeat}))
 
 
 if __name__ == "__main__":

@@ -123,7 +123,7 @@ def _rotate_towards(a, b, angle):
     return np.cos(angle)[:, None] * a + np.sin(angle)[:, None] * perp
 
 
-def _hard_directions(cfg, rng, n_each=40):
+def _hard_directions(cfg, rng, n_each=24):
     """Return (N, 3) unit Sun directions in body axes: random ones, and ones placed on every kind of
     edge the solar disc can straddle: a diode's horizon, its well's cut-off and full-light angles, a
     panel's plane (where the body box starts to shade the tilted diodes)."""
@@ -230,7 +230,7 @@ def test_pairwise_direct_equals_the_previous_code_on_every_edge(config, rng):
     dirs = _disc_directions(sun, solar_disc_offsets(SUN_RADIUS))
     resp = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2)
     straddling = (resp > 0).any(axis=0) & (resp == 0).any(axis=0)
-    assert straddling.sum() > 200
+    assert straddling.sum() > 100
     shade = _old_direct_visibility(resps, frames, body.positions_m, body.panel_normals, dirs.reshape(-1, 3),
                                    body.half_m).reshape(resp.shape)
     lo = np.where(np.isnan(shade), np.inf, shade).min(axis=0)

@@ -614,7 +614,8 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     lit_any = (resp > 0).any(axis=0) | (resp_rim > 0).any(axis=0)
     kink = lit_any & ((resp == 0).any(axis=0) | (resp_rim == 0).any(axis=0) | partial_earth[ep])
     # the well's full-light edge
-    kink |= ((lit == 1).any(axis=0) | (lit_rim == 1).any(axis=0)) & ((lit < 1).any(axis=0) | (lit_rim < 1).any(axis=0))
+    full = (lit == 1).any(axis=0) | (lit_rim == 1).any(axis=0)
+    kink |= full & ((lit < 1).any(axis=0) | (lit_rim < 1).any(axis=0))
     if not kink.any():
         return out
     ep, diode = ep[kink], diode[kink]
