@@ -54,8 +54,8 @@ class Spectrum:
     source: str
 
     def __post_init__(self):
-        w = np.asarray(self.wavelength_m, dtype=float)
-        v = np.asarray(self.value, dtype=float)
+        w = np.array(self.wavelength_m, dtype=float)          # own copies: frozen below, the caller's stay free
+        v = np.array(self.value, dtype=float)
         if w.ndim != 1 or v.shape != w.shape or w.size < 2:
             raise ValueError(f"spectrum {self.name!r}: wavelength_m and value must be 1-D arrays of the same "
                              f"length >= 2, got shapes {w.shape} and {v.shape}")
