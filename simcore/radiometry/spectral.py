@@ -35,7 +35,7 @@ NM_M = 1e-9
 
 # The thesis' diodes (table 3.2.3; simcore.sensor.chain.DIODES) for which no citable tabulated curve
 # was found: named in the error for them so the user learns why (see simcore/data/spectra/README.md).
-NOT_SHIPPED = ("BPW34FS", "SFH2430", "BPW34FAS", "BPV23F")
+NOT_SHIPPED = ("BPW34FS", "SFH2430", "BPW34FAS")
 
 # Gauss-Legendre, two nodes on [0, 1]: exact for polynomials up to degree 3 (a product of up to
 # three linear factors in one interval, e.g. lambda * S_rel * E for the effective wavelength).
