@@ -36,9 +36,8 @@ def test_a_point_lands_on_the_pixel_mitsuba_draws_it_on():
         scene[f"s{i}"] = {"type": "sphere", "center": p.tolist(), "radius": 0.006,
                           "emitter": {"type": "area", "radiance": {"type": "uniform", "value": 1.0}}}
     loaded = mi.load_dict(scene)
-    np.testing.assert_allclose(np.array(loaded.sensors()[0].world_transform().matrix)[..., 0] if
-                               np.array(loaded.sensors()[0].world_transform().matrix).ndim == 3 else
-                               np.array(loaded.sensors()[0].world_transform().matrix), cam.to_world(), atol=1e-6)
+    m = np.array(loaded.sensors()[0].world_transform().matrix)
+    np.testing.assert_allclose(m[..., 0] if m.ndim == 3 else m, cam.to_world(), atol=1e-6)   # the matrix it uses
     img = np.array(mi.render(loaded, seed=1, spp=256))[..., 0]
     labels, n = ndimage.label(img > 0)
     assert n == 3
