@@ -5,7 +5,8 @@ Two views of one epoch of a study (orbit from the TLE, the run's default tumble,
 - the *wide* view: the satellite 0.9 m from a camera that stands 30 deg above the local
   horizontal, 50 deg in azimuth from the Sun, so the view is 60 deg off nadir; the Earth behind
   it coloured by the reflectivity map in use (sunlit side in the colour bar's colours, night side
-  dimmed to 40 %), the Earth's limb near the top;
+  dimmed to 40 %) with the coastlines white on black (:mod:`simcore.environment.coastlines`), the
+  Earth's limb near the top;
 - the *close-up*: the satellite alone (no Earth), four panels side by side, each side panel
   nearly head-on (+-x from 25 deg above, +-y from 25 deg below), so every ramp, well and diode shows.
 
@@ -26,6 +27,7 @@ from scenes.meshes import diode_surfaces
 from scenes.mitsuba_scene import (_REFLECTANCE, Camera, PictureGeometry, build_scene, load_scene, render_passes,
                                   srgb8)
 from simcore.constants import R_EARTH_MEAN_M
+from simcore.environment.coastlines import coastlines_deg, lonlat_to_ecef_m
 from simcore.environment.maps import named_map
 
 # the view's default instant: 40 min into the default run (2016-07-02T00:00Z), ESTCube-1 in sunlight
@@ -239,7 +241,34 @@ def visible_diodes(config, camera, passes, radius_px=4):
     return tuple(out)
 
 
-def _arrow(ax, camera, vec_body, length_m, colour, text, fs, dashed=False):
+def coastline_segments(g, camera, passes, radius_m=R_EARTH_MEAN_M):
+    """Return the visible coastline as (M, 2, 2) pixel segments (x right, y down) of the camera's image.
+
+    A coastline point is visible when it faces the camera (in front of the Earth's limb) and the
+    first hit at its pixel is the Earth (not the satellite). Segments along the date line, where
+    the data cut polygons in two, are not coastline and are left out.
+    """
+    R = np.asarray(g.R_body_from_ecef, float)
+    centre = -R @ np.asarray(g.r_sat_ecef_m, float)
+    origin = np.asarray(camera.origin_m, float)
+    h, w = passes.kind.shape
+    out = []
+    for line in coastlines_deg():
+        p = lonlat_to_ecef_m(line, radius_m) @ R.T + centre
+        xy, depth = camera.project(p)
+        ok = ((origin - p) * (p - centre)).sum(axis=1) > 0.0
+        ok &= depth > 0
+        ok &= np.all(np.isfinite(xy), axis=1) & (xy[:, 0] >= 0) & (xy[:, 0] < w) & (xy[:, 1] >= 0) & (xy[:, 1] < h)
+        j = np.clip(np.floor(np.nan_to_num(xy[:, 0])).astype(int), 0, w - 1)
+        i = np.clip(np.floor(np.nan_to_num(xy[:, 1])).astype(int), 0, h - 1)
+        ok &= passes.kind[i, j] == "earth"
+        seg = ok[:-1] & ok[1:] & ~((np.abs(line[:-1, 0]) > 179.9) & (np.abs(line[1:, 0]) > 179.9))
+        if seg.any():
+            out.append(np.stack([xy[:-1][seg], xy[1:][seg]], axis=1))
+    return np.concatenate(out) if out else np.zeros((0, 2, 2))
+
+
+def _arrow(ax, camera, vec_body, length_m, colour, text, fs, dashed=False, dx=0.0):
     """Draw a 3-D arrow from the satellite centre along ``vec_body``, projected; a marker when it points at the camera."""
     from matplotlib import patheffects
 
@@ -248,12 +277,24 @@ def _arrow(ax, camera, vec_body, length_m, colour, text, fs, dashed=False):
     toward = v @ (np.asarray(camera.origin_m) / dist)
     length = min(length_m, 0.6 * dist / max(toward, 1e-6)) if toward > 0 else length_m
     (x0, y0), (x1, y1) = camera.project(np.zeros(3))[0][0], camera.project(length * v)[0][0]
+    # keep the head inside the frame (matplotlib drops an annotation whose head is outside)
+    mx, my = 0.15 * camera.width, 2.0 * fs       # room for the label beside the head
+    scale = 1.0
+    for lo, hi, a0, a1 in ((mx, camera.width - mx, x0, x1), (my, camera.height - my, y0, y1)):
+        if a1 > hi and a1 != a0:
+            scale = min(scale, (hi - a0) / (a1 - a0))
+        if a1 < lo and a1 != a0:
+            scale = min(scale, (lo - a0) / (a1 - a0))
+    scale = max(scale, 0.0)
+    x1, y1 = x0 + scale * (x1 - x0) + dx, y0 + scale * (y1 - y0)
+    x0 = x0 + dx
     stroke = [patheffects.withStroke(linewidth=max(1.0, fs / 4), foreground="black")]
-    ax.annotate("", xy=(x1, y1), xytext=(x0, y0),
+    ax.annotate("", xy=(x1, y1), xytext=(x0, y0), annotation_clip=False,
                 arrowprops=dict(arrowstyle="-|>", color=colour, lw=max(1.0, fs / 6), ls="--" if dashed else "-",
                                 mutation_scale=fs * 1.2, path_effects=stroke))
-    ax.text(x1, y1, " " + text, color=colour, fontsize=fs, fontweight="bold", ha="left", va="center",
-            path_effects=stroke)
+    right = x1 >= x0
+    ax.text(x1, y1, f" {text}" if right else f"{text} ", color=colour, clip_on=False, fontsize=fs, fontweight="bold",
+            ha="left" if right else "right", va="center", path_effects=stroke)
 
 
 def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_map=None, resolution=(960, 540),
@@ -299,16 +340,31 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
         ax.set_xlim(0, w)
         ax.set_ylim(height, 0)
         ax.set_axis_off()
+        if not close_up:
+            from matplotlib.collections import LineCollection
+            lw = max(0.5, fs / 14)
+            ax.add_collection(LineCollection(coastline_segments(g, p.camera, p.passes, rmap.radius_m),
+                                             colors="white", linewidths=lw, path_effects=[
+                                                 patheffects.withStroke(linewidth=2.5 * lw, foreground="black")]))
+    # annotations on one transparent overlay, so a label near a panel's edge is not covered by the next panel
+    ov = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ov.set_xlim(0, width)
+    ov.set_ylim(height, 0)
+    ov.set_axis_off()
+    ov.patch.set_alpha(0.0)
+    dx = 0
+    for p in panels:
         for k, (x, y) in p.labelled:
-            ax.text(x, y, str(k), color="white", fontsize=fs, fontweight="bold", ha="center", va="center",
+            ov.text(x + dx, y, str(k), color="white", fontsize=fs, fontweight="bold", ha="center", va="center",
                     path_effects=stroke)
         length = 0.2 if not close_up else 0.17
-        _arrow(ax, p.camera, sun_body, length, SUN_COLOUR, "Sun (eclipsed)" if eclipsed else "Sun", fs,
-               dashed=eclipsed)
+        _arrow(ov, p.camera, sun_body, length, SUN_COLOUR, "Sun (eclipsed)" if eclipsed else "Sun", fs,
+               dashed=eclipsed, dx=dx)
         if close_up:
-            _arrow(ax, p.camera, nadir_body, 0.15, "#40c0ff", "nadir", fs)
-            ax.text(0.5, 0.90, f"from {p.label}", transform=ax.transAxes, color="white", fontsize=fs,
+            _arrow(ov, p.camera, nadir_body, 0.15, "#40c0ff", "nadir", fs, dx=dx)
+            ov.text(dx + p.camera.width / 2, 0.10 * height, f"from {p.label}", color="white", fontsize=fs,
                     ha="center", va="top", path_effects=stroke)
+        dx += p.camera.width
     a = sun_earth_angles(g, panels[0].camera)
     sx, sy, sz = a["sun_to_body_axis_deg"]
     ns, ew = ("N" if a["sub_lat_deg"] >= 0 else "S"), ("E" if a["sub_lon_deg"] >= 0 else "W")
@@ -339,7 +395,7 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
         cb = ColorbarBase(cax, cmap=cmap, norm=norm, orientation="vertical")
         cb.ax.tick_params(labelsize=fs * 0.75, colors="white")
         cb.outline.set_edgecolor("white")
-        cb.set_label(f"Earth: {rmap.name} reflectivity (night side dimmed)", color="white", fontsize=fs * 0.8)
+        cb.set_label(f"Earth: {rmap.name} reflectivity\n(night side dimmed; coastlines white on black)", color="white", fontsize=fs * 0.8)
         cb.ax.yaxis.set_label_position("left")
     fig.savefig(str(path_png), dpi=dpi, facecolor="black")
     return panels

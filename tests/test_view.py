@@ -147,3 +147,56 @@ def test_the_cli_writes_a_png_of_the_asked_size(tmp_path, extra):
     img = matplotlib.image.imread(tmp_path / "v.png")
     assert img.shape[:2] == (68, 120)
     assert img[..., :3].std() > 0.05          # not a blank frame
+
+
+def test_coastlines_are_where_the_published_capes_are():
+    # Oracle: published coordinates of capes and a strait (any atlas): Cape of Good Hope 34.357 S
+    # 18.474 E, Cape Horn 55.979 S 67.275 W, Europa Point (Gibraltar) 36.110 N 5.345 W. The crude
+    # GSHHG polygons simplify coasts to ~25 km, so a vertex lies within 0.5 deg of each; the middle
+    # of the South Atlantic (40 S 25 W) is more than 5 deg from any coast (Tristan da Cunha: 14 deg).
+    from simcore.environment.coastlines import coastlines_deg
+
+    pts = np.concatenate(coastlines_deg())
+    assert pts.shape[1] == 2 and np.all(np.abs(pts[:, 1]) <= 90) and np.all(np.abs(pts[:, 0]) <= 180)
+
+    def nearest_deg(lat, lon):
+        la, lo = np.radians(pts[:, 1]), np.radians(pts[:, 0])
+        c = np.sin(la) * np.sin(np.radians(lat)) + np.cos(la) * np.cos(np.radians(lat)) * np.cos(lo - np.radians(lon))
+        return float(np.degrees(np.arccos(np.clip(c, -1, 1))).min())
+
+    for lat, lon in [(-34.357, 18.474), (-55.979, -67.275), (36.110, -5.345)]:
+        assert nearest_deg(lat, lon) < 0.5
+    assert nearest_deg(-40.0, -25.0) > 5.0
+    assert np.min(pts[:, 1]) < -70.0       # Antarctica's shore (type 5) is there
+
+
+def test_drawn_coastline_points_are_where_mitsuba_sees_them():
+    # Oracle: Mitsuba's own camera ray and sphere intersection. Each drawn coastline vertex's pixel
+    # position, handed back to Mitsuba's sensor, must hit the Earth at that vertex: within 200 m,
+    # against ~1 km per pixel at the limb of this 320-px view; a wrong Earth rotation (a transposed
+    # matrix, a longitude offset of one map cell) puts it tens to thousands of km away.
+    from simcore._llvm import import_mitsuba
+    mi = import_mitsuba()
+    from scenes.view import coastline_segments, view_epoch, wide_camera
+
+    ve = view_epoch("2016-07-02T09:12:00Z")           # over Zambia: the East African coast in view
+    cfg = SatelliteConfig.load("tilt0_fov90")
+    cam = wide_camera(ve.geometry, 320, 180)
+    from scenes.mitsuba_scene import build_scene
+    scene_dict, names, kinds, _ = build_scene(cfg, ve.geometry, camera=cam, spp=1)
+    scene = load_scene(scene_dict)
+    passes = render_passes(scene, names, kinds, 1)
+    seg = coastline_segments(ve.geometry, cam, passes)
+    assert len(seg) >= 5
+    xy = seg[:, 0, :]
+    sensor = scene.sensors()[0]
+    rays, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(*(xy / [320, 180]).T.astype(np.float32)), mi.Point2f(0.5, 0.5))
+    si = scene.ray_intersect(rays)
+    assert np.all(np.array(si.is_valid()))
+    R = np.asarray(ve.geometry.R_body_from_ecef)
+    hit_ecef = (np.array(si.p, dtype=float).T + R @ ve.geometry.r_sat_ecef_m) @ R
+    # the same vertices straight from the data, on the 6371.01 km sphere
+    from simcore.environment.coastlines import coastlines_deg, lonlat_to_ecef_m
+    data = lonlat_to_ecef_m(np.concatenate(coastlines_deg()), R_EARTH_MEAN_M)
+    d = np.linalg.norm(hit_ecef[:, None, :] - data[None, :, :], axis=2).min(axis=1)
+    assert np.all(d < 200.0), d.max()
