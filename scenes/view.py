@@ -66,13 +66,15 @@ class ViewEpoch:
 
 
 def view_epoch(time=DEFAULT_VIEW_TIME, *, tle=None, satellite=None, start="2016-07-02T00:00:00Z",
-               spin_rate_deg_s=1.9):
+               spin_rate_deg_s=1.9, attitude_file=None):
     """Return the :class:`ViewEpoch` at ``time`` (ISO UTC) of the study ``sunsim run`` makes with the same options.
 
     The attitude is the run's default tumble about the body diagonal, started aligned with GCRS at
-    ``start`` (the run's ``--start``); the Sun direction is from the satellite (parallax included).
+    ``start`` (the run's ``--start``), or an attitude history (CSV ``t_s,qw,qx,qy,qz``) whose first
+    row is ``start``, as ``sunsim run --attitude``; the Sun direction is from the satellite (parallax included).
     """
-    from simcore.environment.attitude import tumble
+    from simcore.environment.attitude import Attitude, tumble
+    from simcore.errors import InvalidInputError
     from simcore.environment.epochs import Epochs
     from simcore.environment.geometry import compute_geometry
     from simcore.environment.orbit import Orbit
@@ -82,7 +84,16 @@ def view_epoch(time=DEFAULT_VIEW_TIME, *, tle=None, satellite=None, start="2016-
     if len(epochs) != 1:
         raise ValueError("view_epoch() takes one time")
     orbit = Orbit.default(satellite) if tle is None else Orbit.from_file(tle, satellite=satellite)
-    attitude = tumble(epochs.seconds_since(t0), rate_deg_s=spin_rate_deg_s)
+    t_s = epochs.seconds_since(t0)
+    if attitude_file is None:
+        attitude = tumble(t_s, rate_deg_s=spin_rate_deg_s)
+    else:
+        history = Attitude.from_file(attitude_file)
+        span = history.t_s[-1] - history.t_s[0]
+        if not 0.0 <= t_s[0] <= span:
+            raise InvalidInputError(f"the attitude file {attitude_file} spans {span:g} s from the start {start}, but "
+                                    f"the picture's time is {t_s[0]:g} s after it; give a --time within the file")
+        attitude = history.resample(history.t_s[0] + t_s)
     g = compute_geometry(orbit, epochs, attitude)
     R_ecef_from_body = g.R_ecef_from_body[0]
     sun_ecef = g.R_ecef_from_gcrs[0] @ g.sun_dir_gcrs[0]

@@ -223,7 +223,7 @@ def cmd_view(args):
     rmap = named_map(args.map or "toms2005")
     Epochs.from_any(args.time)
     ve = view_epoch(args.time, tle=args.tle, satellite=args.satellite, start=args.start,
-                    spin_rate_deg_s=args.spin_rate)
+                    spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude)
     if not np.all(np.isfinite(ve.geometry.r_sat_ecef_m)):
         raise InvalidInputError(f"SGP4 cannot place the satellite at {args.time} (the orbit has decayed or the TLE "
                                 "is too far from that date); give a --time nearer the TLE epoch")
@@ -581,6 +581,8 @@ def build_parser():
                    help="the run's start, where its tumble begins aligned with GCRS (default: %(default)s)")
     v.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S",
                    help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
+    v.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz whose first row is --start "
+                                                      "(overrides the tumble), as for `run`")
     v.add_argument("-o", "--output", default=None, metavar="FILE.png",
                    help="PNG file (default runs/scene_CONFIG.png, runs/scene_CONFIG_close.png with --close-up)")
     v.add_argument("--spp", type=int, default=64, help="samples per pixel (default %(default)s)")

@@ -200,3 +200,33 @@ def test_drawn_coastline_points_are_where_mitsuba_sees_them():
     data = lonlat_to_ecef_m(np.concatenate(coastlines_deg()), R_EARTH_MEAN_M)
     d = np.linalg.norm(hit_ecef[:, None, :] - data[None, :, :], axis=2).min(axis=1)
     assert np.all(d < 200.0), d.max()
+
+
+def test_an_attitude_file_sets_the_body_axes(tmp_path):
+    # Oracle: astropy's Sun seen from ESTCube-1 (as above), with the body frame held on GCRS by an
+    # identity attitude history: the Sun's angles to body +x, +y, +z are its angles to the GCRS axes.
+    import astropy.units as u
+    from astropy.coordinates import GCRS, TEME, CartesianRepresentation, get_body
+    from astropy.time import Time
+    from astropy.utils import iers
+    from sgp4.api import Satrec
+    iers.conf.auto_download = False
+
+    from scenes.view import view_epoch, sun_earth_angles
+
+    (tmp_path / "att.csv").write_text("t_s,qw,qx,qy,qz\n0,1,0,0,0\n3600,1,0,0,0\n")
+    ve = view_epoch("2016-07-02T00:30:00Z", start="2016-07-02T00:00:00Z", attitude_file=str(tmp_path / "att.csv"))
+    got = sun_earth_angles(ve.geometry)["sun_to_body_axis_deg"]
+    tle = [s for s in (files("simcore") / "data" / "estcube1_2016-07-27.tle").read_text().splitlines()
+           if s.startswith(("1 ", "2 "))]
+    t = Time("2016-07-02T00:30:00", scale="utc")
+    _, r_km, _ = Satrec.twoline2rv(tle[0], tle[1]).sgp4(t.jd1, t.jd2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = TEME(CartesianRepresentation(np.array(r_km) * u.km), obstime=t).transform_to(GCRS(obstime=t))
+        r = r.cartesian.xyz.to(u.m).value
+        sun = get_body("sun", t).cartesian.xyz.to(u.m).value
+    s = (sun - r) / np.linalg.norm(sun - r)
+    np.testing.assert_allclose(got, np.degrees(np.arccos(s)), atol=0.01)
+    with pytest.raises(ValueError, match="give a --time within the file"):
+        view_epoch("2016-07-02T02:00:00Z", attitude_file=str(tmp_path / "att.csv"))
