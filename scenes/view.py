@@ -289,9 +289,11 @@ def _arrow(ax, camera, vec_body, length_m, colour, text, fs, dashed=False, dx=0.
     length = min(length_m, 0.6 * dist / max(toward, 1e-6)) if toward > 0 else length_m
     (x0, y0), (x1, y1) = camera.project(np.zeros(3))[0][0], camera.project(length * v)[0][0]
     # keep the head inside the frame (matplotlib drops an annotation whose head is outside)
-    mx, my = 0.15 * camera.width, 2.0 * fs       # room for the label beside the head
+    # room for the label beside the head, and for the legend (top) and the two-line caption (bottom)
+    px = fs * 100.0 / 72.0                        # one font size in pixels at the figure's 100 dpi
+    mx = 0.15 * camera.width
     scale = 1.0
-    for lo, hi, a0, a1 in ((mx, camera.width - mx, x0, x1), (my, camera.height - my, y0, y1)):
+    for lo, hi, a0, a1 in ((mx, camera.width - mx, x0, x1), (2.0 * px, camera.height - 4.0 * px, y0, y1)):
         if a1 > hi and a1 != a0:
             scale = min(scale, (hi - a0) / (a1 - a0))
         if a1 < lo and a1 != a0:
