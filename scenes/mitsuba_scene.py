@@ -1,20 +1,21 @@
-"""A picture of the satellite over the TOMS-textured Earth, rendered with Mitsuba 3 (llvm_ad_mono).
+"""The Mitsuba 3 scene of the satellite over the map-textured Earth (llvm_ad_mono), its camera, and a plain picture.
 
 Render frame = body axes with the satellite at the origin (``docs/conventions.md``):
-the Earth sphere (radius 6371.01 km) sits at ``-R_body_from_ecef @ r_sat_ecef_m``
+the Earth sphere (the map's radius, 6371.01 km) sits at ``-R_body_from_ecef @ r_sat_ecef_m``
 and is turned by ``R_body_from_ecef`` so that its texture keeps the geography.
 Mitsuba's sphere maps a local point to ``u = phi / 2 pi`` (phi from local +x
-towards +y, i.e. east longitude from 0 to 360 deg) and ``v = theta / pi``
-(theta from local +z, the north pole), and its bitmap texture puts ``v = 0``
-at the first stored row. The TOMS map (row 0 = SOUTH band, column 0 =
-longitude -179.375 deg) is therefore flipped north-up and rolled by half a
-turn before it becomes the Earth's reflectance: raw values (some exceed 1 over
-ice, never clamped), nearest filtering. The Sun is a ``directional`` emitter
-whose ``direction`` is the propagation direction, minus the Sun vector.
+towards +y) and ``v = theta / pi`` (theta from local +z, the north pole), and its
+bitmap texture puts ``v = 0`` at the first stored row. A reflectivity map (any
+regular grid; TOMS: row 0 = SOUTH band, column 0 = longitude -179.375 deg) is
+flipped north-up, and the sphere's local +x is turned to the western edge of the
+map's column 0 (:func:`earth_to_world`), so texture column j is map column j: raw
+values (some exceed 1 over ice, never clamped), nearest filtering. The Sun is a
+``directional`` emitter whose ``direction`` is the propagation direction, minus the Sun vector.
 
-The picture is radiometric (mono), tone-mapped for display and tinted with a
-per-shape false colour (Earth blue, body grey, ramps gold, wells dark, diodes
-blue) from an extra shape-index pass, so parts stay recognisable.
+:class:`Camera` is the pinhole camera handed to Mitsuba and its inverse, the projection that
+places annotations (``scenes.view``). :func:`picture` writes the plain radiometric picture (mono),
+tone-mapped and tinted with a per-shape false colour; the annotated picture an engineer checks is
+``scenes.view.view_picture`` (``sunsim view``).
 """
 from __future__ import annotations
 
