@@ -1,20 +1,21 @@
-"""A picture of the satellite over the TOMS-textured Earth, rendered with Mitsuba 3 (llvm_ad_mono).
+"""The Mitsuba 3 scene of the satellite over the map-textured Earth (llvm_ad_mono), its camera, and a plain picture.
 
 Render frame = body axes with the satellite at the origin (``docs/conventions.md``):
-the Earth sphere (radius 6371.01 km) sits at ``-R_body_from_ecef @ r_sat_ecef_m``
+the Earth sphere (the map's radius, 6371.01 km) sits at ``-R_body_from_ecef @ r_sat_ecef_m``
 and is turned by ``R_body_from_ecef`` so that its texture keeps the geography.
 Mitsuba's sphere maps a local point to ``u = phi / 2 pi`` (phi from local +x
-towards +y, i.e. east longitude from 0 to 360 deg) and ``v = theta / pi``
-(theta from local +z, the north pole), and its bitmap texture puts ``v = 0``
-at the first stored row. The TOMS map (row 0 = SOUTH band, column 0 =
-longitude -179.375 deg) is therefore flipped north-up and rolled by half a
-turn before it becomes the Earth's reflectance: raw values (some exceed 1 over
-ice, never clamped), nearest filtering. The Sun is a ``directional`` emitter
-whose ``direction`` is the propagation direction, minus the Sun vector.
+towards +y) and ``v = theta / pi`` (theta from local +z, the north pole), and its
+bitmap texture puts ``v = 0`` at the first stored row. A reflectivity map (any
+regular grid; TOMS: row 0 = SOUTH band, column 0 = longitude -179.375 deg) is
+flipped north-up, and the sphere's local +x is turned to the western edge of the
+map's column 0 (:func:`earth_to_world`), so texture column j is map column j: raw
+values (some exceed 1 over ice, never clamped), nearest filtering. The Sun is a
+``directional`` emitter whose ``direction`` is the propagation direction, minus the Sun vector.
 
-The picture is radiometric (mono), tone-mapped for display and tinted with a
-per-shape false colour (Earth blue, body grey, ramps gold, wells dark, diodes
-blue) from an extra shape-index pass, so parts stay recognisable.
+:class:`Camera` is the pinhole camera handed to Mitsuba and its inverse, the projection that
+places annotations (``scenes.view``). :func:`picture` writes the plain radiometric picture (mono),
+tone-mapped and tinted with a per-shape false colour; the annotated picture an engineer checks is
+``scenes.view.view_picture`` (``sunsim view``).
 """
 from __future__ import annotations
 
@@ -95,15 +96,28 @@ def _direction(north, east, up, azimuth_deg, elevation_deg):
     return np.cos(el) * (np.cos(az) * north + np.sin(az) * east) + np.sin(el) * up
 
 
-def toms_texture_array():
-    """Return the TOMS reflectivity as Mitsuba's sphere texture (180, 288): row 0 north, column 0 lon 0..1.25 deg.
+def map_texture_array(reflectivity_map):
+    """Return a map's reflectivity as Mitsuba's sphere texture (n_lat, n_lon): row 0 north, column 0 the map's own.
 
-    Raw values, not clamped.
+    Raw values, not clamped. Column 0 stays the map's western-most column: :func:`earth_to_world` turns
+    the sphere about its polar axis so that the texture's u = 0 lies on that column's western edge.
     """
-    m = named_map("toms2005")
-    refl, lon = np.asarray(m.values, float), np.asarray(m.lon_deg, float)
-    shift = int(np.argmin(np.abs(np.mod(lon, 360.0) - (360.0 / lon.size) / 2.0)))  # the cell starting at lon 0
-    return np.ascontiguousarray(np.roll(refl, -shift, axis=1)[::-1])
+    return np.ascontiguousarray(np.asarray(reflectivity_map.values_south_first, float)[::-1])
+
+
+def earth_to_world(R_body_from_ecef, r_sat_body_m, reflectivity_map):
+    """Return the Earth sphere's 4 x 4 to_world (render frame, m): ECEF axes turned by the map's first column edge.
+
+    Mitsuba's sphere puts u = 0 at its local +x; the local frame is ECEF rotated about z by the
+    longitude of the map's western edge, so texture column j covers the map's column j exactly.
+    """
+    lon0 = np.radians(float(reflectivity_map.lon_edges_deg[0]))
+    c, s = np.cos(lon0), np.sin(lon0)
+    Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    m = np.eye(4)
+    m[:3, :3] = np.asarray(R_body_from_ecef, float) @ Rz
+    m[:3, 3] = -np.asarray(r_sat_body_m, float)
+    return m
 
 
 def _mesh(mi, name, tm, reflectance):
@@ -119,16 +133,91 @@ def _mesh(mi, name, tm, reflectance):
     return mesh
 
 
-def _camera_frame(camera_dir_body, up_body):
-    d = np.asarray(camera_dir_body, float)
-    d = d / np.linalg.norm(d)
-    up = np.asarray(up_body, float) - (np.asarray(up_body, float) @ d) * d
-    return d, up / np.linalg.norm(up)
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera in the render frame (m): Mitsuba's ``perspective`` sensor with ``fov_axis = "x"``.
+
+    ``to_world()`` is the matrix handed to Mitsuba; ``project()`` inverts it, so annotations land on
+    the pixels Mitsuba draws (``tests/test_view.py`` renders small bright spheres to prove it).
+    """
+
+    origin_m: tuple
+    target_m: tuple
+    up: tuple
+    fov_x_deg: float
+    width: int
+    height: int
+
+    @property
+    def look_dir(self):
+        """Return the unit viewing direction (3,), render frame."""
+        d = np.asarray(self.target_m, float) - np.asarray(self.origin_m, float)
+        return d / np.linalg.norm(d)
+
+    def to_world(self):
+        """Return the camera's 4 x 4 to_world: columns (left, up, forward, origin), as Mitsuba's look_at builds it."""
+        d = self.look_dir
+        left = np.cross(np.asarray(self.up, float), d)
+        if np.linalg.norm(left) < 1e-9:
+            raise ValueError("the camera's up vector is parallel to its viewing direction; give another up")
+        left /= np.linalg.norm(left)
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, np.cross(d, left), d, np.asarray(self.origin_m, float)
+        return m
+
+    def project(self, points_m):
+        """Return (pixel xy (N, 2), depth_m (N,)) of render-frame points: x right, y down, pixel i spans [i, i + 1).
+
+        Depth is along the viewing direction; points with depth <= 0 are behind the camera (their xy is NaN).
+        """
+        p = np.atleast_2d(np.asarray(points_m, float)) - np.asarray(self.origin_m, float)
+        m = self.to_world()
+        x, y, z = p @ m[:3, 0], p @ m[:3, 1], p @ m[:3, 2]
+        tan_x = np.tan(np.radians(self.fov_x_deg) / 2.0)
+        tan_y = tan_x * self.height / self.width
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.where(z > 0, 0.5 - 0.5 * x / (z * tan_x), np.nan)   # Mitsuba's film x runs to camera -x (left)
+            v = np.where(z > 0, 0.5 - 0.5 * y / (z * tan_y), np.nan)
+        return np.column_stack([u * self.width, v * self.height]), z
+
+    def sensor_dict(self, spp):
+        """Return Mitsuba's sensor dictionary for this camera at ``spp`` samples per pixel (luminance film)."""
+        mi = _mi()
+        return {
+            "type": "perspective", "fov": float(self.fov_x_deg), "fov_axis": "x",
+            "near_clip": 0.01, "far_clip": 2.0e7,
+            "to_world": mi.ScalarTransform4f(self.to_world()),
+            "sampler": {"type": "independent", "sample_count": int(spp)},
+            "film": {"type": "hdrfilm", "width": int(self.width), "height": int(self.height),
+                     "rfilter": {"type": "box"}, "pixel_format": "luminance"},
+        }
+
+
+def _default_camera(g, resolution, camera_distance_m, fov_deg):
+    R = np.asarray(g.R_body_from_ecef, float)
+    zenith_body = R @ np.asarray(g.r_sat_ecef_m, float)
+    zenith_body /= np.linalg.norm(zenith_body)
+    sun_body = R @ np.asarray(g.sun_dir_ecef, float)
+    cam_dir = g.camera_dir_body
+    if cam_dir is None:
+        # look down 28 deg from a horizontal direction perpendicular to the Sun's horizontal bearing
+        horiz = np.cross(zenith_body, sun_body)
+        horiz = horiz / np.linalg.norm(horiz) if np.linalg.norm(horiz) > 1e-9 else np.cross(zenith_body, [1, 0, 0])
+        cam_dir = np.cos(np.radians(28)) * horiz + np.sin(np.radians(28)) * zenith_body
+    cam_dir = np.asarray(cam_dir, float) / np.linalg.norm(cam_dir)
+    return Camera(tuple(camera_distance_m * cam_dir), (0.0, 0.0, 0.0), tuple(zenith_body), float(fov_deg),
+                  int(resolution[0]), int(resolution[1]))
 
 
 def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, camera_distance_m=1.0,
-                fov_deg=36.0, max_depth=4):
-    """Return (mitsuba scene dict, shape ids, their part kinds) for the picture (render frame, m)."""
+                fov_deg=36.0, max_depth=4, *, camera=None, reflectivity_map=None, earth=True, fill_radiance=0.0):
+    """Return (Mitsuba scene dict, shape ids, their part kinds, the :class:`Camera`) for a picture (render frame, m).
+
+    ``camera`` overrides the default one (28 deg above the horizontal, ``camera_distance_m`` away);
+    ``reflectivity_map`` (default TOMS 2005) textures the Earth with raw values; ``earth=False`` leaves
+    it out (a close-up of the satellite alone); ``fill_radiance`` > 0 adds a uniform sky of that
+    radiance (units of E_sun / pi) so that faces turned from the Sun stay legible.
+    """
     mi = _mi()
 
     g = default_geometry() if epoch_geometry is None else epoch_geometry
@@ -138,46 +227,35 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
     r_sat_body = R @ np.asarray(g.r_sat_ecef_m, float)
     sun_body = R @ np.asarray(g.sun_dir_ecef, float)
     sun_body = sun_body / np.linalg.norm(sun_body)
-    zenith_body = r_sat_body / np.linalg.norm(r_sat_body)
-    cam_dir = g.camera_dir_body
-    if cam_dir is None:
-        # look down 28 deg from a horizontal direction perpendicular to the Sun's horizontal bearing
-        horiz = np.cross(zenith_body, sun_body)
-        horiz = horiz / np.linalg.norm(horiz) if np.linalg.norm(horiz) > 1e-9 else np.cross(zenith_body, [1, 0, 0])
-        cam_dir = np.cos(np.radians(28)) * horiz + np.sin(np.radians(28)) * zenith_body
-    cam_dir, up = _camera_frame(cam_dir, zenith_body)
-
-    to_world_earth = np.eye(4)
-    to_world_earth[:3, :3] = R  # local sphere axes = ECEF axes
-    to_world_earth[:3, 3] = -r_sat_body
-    bitmap = mi.Bitmap(toms_texture_array().astype(np.float32))
+    if camera is None:
+        camera = _default_camera(g, resolution, camera_distance_m, fov_deg)
+    rmap = named_map("toms2005") if reflectivity_map is None else reflectivity_map
     scene = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": int(max_depth)},
-        "sensor": {
-            "type": "perspective", "fov": float(fov_deg), "fov_axis": "x",
-            "near_clip": 0.01, "far_clip": 2.0e7,
-            "to_world": mi.ScalarTransform4f().look_at(origin=(camera_distance_m * cam_dir).tolist(),
-                                                     target=[0.0, 0.0, 0.0], up=up.tolist()),
-            "sampler": {"type": "independent", "sample_count": int(spp)},
-            "film": {"type": "hdrfilm", "width": int(resolution[0]), "height": int(resolution[1]),
-                     "rfilter": {"type": "box"}, "pixel_format": "luminance"},
-        },
+        "sensor": camera.sensor_dict(spp),
         # irradiance pi W/m^2 makes a white Lambertian plate facing the Sun radiance 1 (display scale)
         "sun": {"type": "directional", "direction": (-sun_body).tolist(), "irradiance": float(np.pi)},
-        "earth": {
-            "type": "sphere", "radius": R_EARTH_MEAN_M, "to_world": mi.ScalarTransform4f(to_world_earth),
+    }
+    if fill_radiance > 0:
+        scene["sky"] = {"type": "constant", "radiance": {"type": "uniform", "value": float(fill_radiance)}}
+    names, kinds = [], []
+    if earth:
+        bitmap = mi.Bitmap(map_texture_array(rmap).astype(np.float32))
+        scene["earth"] = {
+            "type": "sphere", "radius": float(rmap.radius_m),
+            "to_world": mi.ScalarTransform4f(earth_to_world(R, r_sat_body, rmap)),
             "bsdf": {"type": "diffuse", "reflectance": {"type": "bitmap", "bitmap": bitmap, "raw": True,
                                                         "filter_type": "nearest"}},
-        },
-    }
-    names, kinds = ["earth"], ["earth"]
+        }
+        names.append("earth")
+        kinds.append("earth")
     for name, tm in build_parts(config, include_diodes=True).items():
         kind = name.split("_")[0]
-        scene[name] = _mesh(mi, name, tm, _REFLECTANCE[kind])
+        scene[name] = _mesh(mi, name, tm, _REFLECTANCE.get(kind, _REFLECTANCE["body"]))
         names.append(name)
         kinds.append(kind)
-    return scene, names, kinds
+    return scene, names, kinds, camera
 
 
 def load_scene(scene_dict):
@@ -197,6 +275,46 @@ def load_scene(scene_dict):
 
 
 @dataclass(frozen=True)
+class RenderPasses:
+    """What one render gives a picture: radiance and, per pixel centre, the first shape hit.
+
+    ``radiance`` (H, W) in units of E_sun / pi; ``name`` and ``kind`` (H, W) object arrays of the
+    shape id and part kind ('' where the ray leaves the scene); ``hit_m`` and ``normal`` (H, W, 3)
+    render-frame hit points and unit shading normals (NaN where nothing is hit).
+    """
+
+    radiance: np.ndarray
+    name: np.ndarray
+    kind: np.ndarray
+    hit_m: np.ndarray
+    normal: np.ndarray
+
+
+def render_passes(scene, names, kinds, spp, seed=0):
+    """Return the :class:`RenderPasses` of a loaded scene: a path-traced image plus one primary ray per pixel centre."""
+    mi = _mi()
+    sensor = scene.sensors()[0]
+    w, h = (int(v) for v in sensor.film().size())
+    radiance = np.array(mi.render(scene, seed=seed, spp=int(spp)))[..., 0]
+    jj, ii = np.meshgrid(np.arange(w), np.arange(h))
+    pos = mi.Point2f(((jj.ravel() + 0.5) / w).astype(np.float32), ((ii.ravel() + 0.5) / h).astype(np.float32))
+    rays, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
+    si = scene.ray_intersect(rays)
+    hit = np.array(si.is_valid())
+    name = np.full(h * w, "", dtype=object)
+    kind = np.full(h * w, "", dtype=object)
+    by_id = dict(zip(names, kinds))
+    for shape in scene.shapes():
+        mask = np.array(si.shape == mi.ShapePtr(shape)) & hit
+        name[mask] = shape.id()
+        kind[mask] = by_id[shape.id()]
+    p = np.array(si.p, dtype=float).T
+    n = np.array(si.sh_frame.n, dtype=float).T
+    p[~hit], n[~hit] = np.nan, np.nan
+    return RenderPasses(radiance, name.reshape(h, w), kind.reshape(h, w), p.reshape(h, w, 3), n.reshape(h, w, 3))
+
+
+@dataclass(frozen=True)
 class Picture:
     """A rendered picture: the PNG path, the display image (H, W, 3) uint8 and masks per part kind."""
 
@@ -213,39 +331,22 @@ class Picture:
 
 def picture(config, path_png, epoch_geometry=None, spp=64, resolution=(960, 540), camera_distance_m=1.0,
             fov_deg=36.0, seed=0, exposure=1.0):
-    """Render the satellite over the Earth and write a PNG; return a :class:`Picture`.
+    """Render the satellite over the Earth and write a plain (unannotated) PNG; return a :class:`Picture`.
 
     ``config``: a :class:`scenes.config.SatelliteConfig` or a configuration name; ``epoch_geometry``:
     a :class:`PictureGeometry` or a dict of its fields (default :func:`default_geometry`);
     ``camera_distance_m`` from the satellite centre, ``fov_deg`` horizontal; ``exposure`` scales the
     display image only (1: a white plate facing the Sun is just white). ``Picture.radiance`` is
-    the rendered radiance in units of E_sun / pi (the Sun's irradiance is pi).
+    the rendered radiance in units of E_sun / pi (the Sun's irradiance is pi). The annotated view
+    an engineer checks is :func:`scenes.view.view_picture`.
     """
-    mi = _mi()
-
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
-    scene_dict, names, kinds = build_scene(config, epoch_geometry, resolution, spp, camera_distance_m, fov_deg)
-    scene = load_scene(scene_dict)
-    radiance = np.array(mi.render(scene, seed=seed, spp=int(spp)))[..., 0]
-    # which shape each pixel centre sees: one primary ray per pixel
-    w, h = int(resolution[0]), int(resolution[1])
-    sensor = scene.sensors()[0]
-    jj, ii = np.meshgrid(np.arange(w), np.arange(h))
-    pos = mi.Point2f(((jj.ravel() + 0.5) / w).astype(np.float32), ((ii.ravel() + 0.5) / h).astype(np.float32))
-    rays, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
-    si = scene.ray_intersect(rays)
-    hit = np.array(si.is_valid())
-    kind = np.full(h * w, "", dtype=object)
-    by_id = dict(zip(names, kinds))
-    for shape in scene.shapes():
-        mask = np.array(si.shape == mi.ShapePtr(shape))
-        kind[mask & hit] = by_id[shape.id()]
-    kind = kind.reshape(h, w)
-    rgb = _tone_map(radiance * float(exposure), kind)
-
+    scene_dict, names, kinds, _ = build_scene(config, epoch_geometry, resolution, spp, camera_distance_m, fov_deg)
+    passes = render_passes(load_scene(scene_dict), names, kinds, spp, seed)
+    rgb = _tone_map(passes.radiance * float(exposure), passes.kind)
     matplotlib.image.imsave(str(path_png), rgb)
-    return Picture(str(path_png), rgb, radiance, kind)
+    return Picture(str(path_png), rgb, passes.radiance, passes.kind)
 
 
 def _tone_map(radiance, kind):
@@ -253,6 +354,11 @@ def _tone_map(radiance, kind):
     tint = np.ones(radiance.shape + (3,))
     for k, c in _TINT.items():
         tint[kind == k] = c
-    lin = np.clip(radiance[..., None] * tint, 0.0, 1.0)
+    return srgb8(np.clip(radiance[..., None] * tint, 0.0, 1.0))
+
+
+def srgb8(linear):
+    """Return sRGB uint8 of linear values in 0..1 (the sRGB transfer curve)."""
+    lin = np.clip(np.asarray(linear, float), 0.0, 1.0)
     srgb = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * np.power(lin, 1 / 2.4) - 0.055)
     return (srgb * 255 + 0.5).astype(np.uint8)

@@ -201,22 +201,40 @@ def cmd_coverage(args):
 
 
 def cmd_view(args):
-    """Render the scene picture: the CubeSat over the textured Earth in sunlight."""
+    """Render the annotated scene picture: the CubeSat at one epoch, over the Earth coloured by its reflectivity."""
     from scenes.config import SatelliteConfig
-    from scenes.mitsuba_scene import picture
+    from scenes.view import view_epoch, view_picture
+    from simcore.environment.epochs import Epochs
+    from simcore.environment.maps import named_map
     from simcore.pipeline.store import check_writable
+    if args.config_pos and args.config and args.config_pos != args.config:
+        raise InvalidInputError(f"two configurations given ({args.config_pos} and --config {args.config}); give one")
+    config = args.config or args.config_pos or "tilt20_fov70"
     if args.spp < 1:
         raise InvalidInputError(f"--spp must be a positive number of samples per pixel, got {args.spp}")
     w, h = args.resolution
     if not (1 <= w <= 16384 and 1 <= h <= 16384):
         raise InvalidInputError(f"--resolution W H must be whole pixels from 1 to 16384, got {w} {h}")
-    cfg = SatelliteConfig.load(args.config)
+    if args.close_up and args.map is not None:
+        raise InvalidInputError("--map colours the Earth, which --close-up leaves out; drop one of them")
+    if args.output is not None and not args.output.lower().endswith(".png"):
+        raise InvalidInputError(f"-o {args.output}: the picture is a PNG; give a file name ending in .png")
+    cfg = SatelliteConfig.load(config)
+    rmap = named_map(args.map or "toms2005")
+    Epochs.from_any(args.time)
+    ve = view_epoch(args.time, tle=args.tle, satellite=args.satellite, start=args.start,
+                    spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude)
+    if not np.all(np.isfinite(ve.geometry.r_sat_ecef_m)):
+        raise InvalidInputError(f"SGP4 cannot place the satellite at {args.time} (the orbit has decayed or the TLE "
+                                "is too far from that date); give a --time nearer the TLE epoch")
     if args.output is None:
         os.makedirs("runs", exist_ok=True)
-        args.output = os.path.join("runs", f"scene_{cfg.name}.png")
+        args.output = os.path.join("runs", f"scene_{cfg.name}" + ("_close" if args.close_up else "") + ".png")
     check_writable(args.output)
-    pic = picture(args.config, args.output, spp=args.spp, resolution=tuple(args.resolution))
-    print(json.dumps({"config": args.config, "picture": str(pic.path)}) if args.json else f"picture: {pic.path}")
+    view_picture(cfg, args.output, ve, close_up=args.close_up, reflectivity_map=rmap, resolution=(w, h),
+                 spp=args.spp, seed=args.seed)
+    print(json.dumps({"config": cfg.name, "time": ve.epoch_iso, "picture": str(args.output)}) if args.json
+          else f"picture: {args.output}")
     return 0
 
 
@@ -547,11 +565,30 @@ def build_parser():
     c.add_argument("--json", action="store_true", help="one JSON object per configuration")
     c.set_defaults(func=cmd_coverage)
 
-    v = sub.add_parser("view", help="render a picture of the scene (CubeSat over the textured Earth)")
-    v.add_argument("config", metavar="CONFIG")
-    v.add_argument("-o", "--output", default=None, help="PNG file (default runs/scene_CONFIG.png)")
+    v = sub.add_parser("view", help="an annotated picture of the scene at one epoch: materials in colour, diodes "
+                                    "numbered, the Sun's direction, the Earth coloured by its reflectivity map")
+    v.add_argument("config_pos", nargs="?", metavar="CONFIG", help="configuration (same as --config)")
+    v.add_argument("--config", metavar="NAME_OR_TOML",
+                   help="a shipped configuration name or a .toml file (default tilt20_fov70)")
+    v.add_argument("--time", default="2016-07-02T00:40:00Z", metavar="ISO",
+                   help="UTC epoch of the picture (default %(default)s: 40 min into the default run, in sunlight)")
+    v.add_argument("--close-up", action="store_true",
+                   help="the satellite alone (no Earth) from two opposite sides, so every diode number shows")
+    v.add_argument("--map", default=None, help="reflectivity map colouring the Earth, as for `run` (default toms2005)")
+    v.add_argument("--tle", metavar="FILE", help=DEFAULT_TLE_HELP)
+    v.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
+    v.add_argument("--start", default="2016-07-02T00:00:00Z",
+                   help="the run's start, where its tumble begins aligned with GCRS (default: %(default)s)")
+    v.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S",
+                   help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
+    v.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz whose first row is --start "
+                                                      "(overrides the tumble), as for `run`")
+    v.add_argument("-o", "--output", default=None, metavar="FILE.png",
+                   help="PNG file (default runs/scene_CONFIG.png, runs/scene_CONFIG_close.png with --close-up)")
     v.add_argument("--spp", type=int, default=64, help="samples per pixel (default %(default)s)")
-    v.add_argument("--resolution", type=int, nargs=2, default=(960, 540), metavar=("W", "H"))
+    v.add_argument("--resolution", type=int, nargs=2, default=(960, 540), metavar=("W", "H"),
+                   help="picture size in pixels (default 960 540)")
+    v.add_argument("--seed", type=int, default=0, help="random seed of the render")
     v.add_argument("--json", action="store_true")
     v.set_defaults(func=cmd_view)
 

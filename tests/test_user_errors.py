@@ -131,6 +131,10 @@ def test_a_tle_checksum_error_suggests_no_python_keyword(tmp_path):
 @pytest.mark.parametrize("bad, good, words", [
     (["--spp", "0"], ["--spp", "1"], "--spp must be a positive number"),
     (["--resolution", "0", "0"], ["--resolution", "16", "9"], "--resolution W H must be whole pixels"),
+    (["--time", "2016-13-02"], ["--time", "2016-07-02T01:00:00Z"], "cannot read '2016-13-02' as a UTC time"),
+    (["--map", "toms"], ["--map", "toms2005"], "did you mean toms2005?"),
+    (["--close-up", "--map", "uniform:0.3"], ["--close-up"], "--close-up leaves out"),
+    (["--config", "tilt0_fov90"], ["--config", "tilt20_fov70"], "two configurations given"),
 ])
 def test_view_mistakes_are_one_line(tmp_path, bad, good, words):
     base = ["view", "tilt20_fov70", "-o", "pic.png", "--spp", "1", "--resolution", "16", "9"]
