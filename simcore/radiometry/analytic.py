@@ -491,38 +491,53 @@ def _pair_response(resps, frames, diode, d):
 def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None):
     """Return ((T,), (T,) bool): the weighted mean over the disc points of each (epoch, diode) pair, ``dirs``
     (M, T, 3), ``weights`` and ``resp`` (M, T), diode ``diode[t]``, times the body box's visibility; and
-    whether the box's shadow edge crosses the pair's disc (found from the centre, six points of the
-    outermost ring and the ``rim`` directions (R, T, 3), if given)."""
+    whether the box's shadow edge reaches only the disc's ``rim`` (directions (R, T, 3), if given): the
+    centre and six points of the outermost ring agree, the rim's points do not (a sliver none of the M
+    points can see); (T,) the box's visibility where all those probes agree on it (NaN elsewhere); and
+    whether they saw the edge cross the disc's interior."""
     m, n = resp.shape
     if body is None:
-        return np.einsum("mn,mn->n", weights, resp), np.zeros(n, bool)
+        return np.einsum("mn,mn->n", weights, resp), np.zeros(n, bool), np.ones(n), np.zeros(n, bool)
 
     def vis(k, d):
         return pair_visibility(resps, frames, body.positions_m, body.panel_normals, k, d, body.half_m)
+
+    def crossing(v_probe):
+        undefined = np.isnan(v_probe).any(axis=0)
+        lo = np.where(np.isnan(v_probe), np.inf, v_probe).min(axis=0)
+        hi = np.where(np.isnan(v_probe), -np.inf, v_probe).max(axis=0)
+        seen = np.isfinite(lo)
+        return seen, lo, hi, (seen & (hi > lo)) | (seen & (lo > 0) & (lo < 1)) | undefined
     # The box's shadow edge crosses the solar disc only for a few diode-epochs: find them from the
-    # centre, six points spread around the outermost ring (6 r points) and the disc's very rim, and average
-    # over the whole disc there alone. Where the well lets no light through, visibility is undefined (NaN).
+    # centre and six points spread around the outermost ring (6 r points), and average over the whole
+    # disc there alone. Where the well lets no light through, visibility is undefined (NaN).
     n_ring = 6 * rings
     probe = [0] + list(range(m - n_ring, m, max(rings, 1))) if m > 1 else [0]
     pd = dirs[probe] if rim is None else np.concatenate([dirs[probe], rim])
     v_probe = vis(np.tile(diode, len(pd)), pd.reshape(-1, 3)).reshape(len(pd), n)
-    undefined = np.isnan(v_probe).any(axis=0)
-    lo = np.where(np.isnan(v_probe), np.inf, v_probe).min(axis=0)
-    hi = np.where(np.isnan(v_probe), -np.inf, v_probe).max(axis=0)
-    seen = np.isfinite(lo)
-    partial = seen & (lo > 0) & (lo < 1)
-    edge = ((resp > 0).any(axis=0) | (hi > 0)) & ((seen & (hi > lo)) | partial | undefined)
+    seen, lo, hi, cross = crossing(v_probe[:len(probe)])
+    edge = (resp > 0).any(axis=0) & cross
+    rim_only = np.zeros(n, bool)
+    if rim is not None:
+        # (probes where the well itself is dark say nothing of the box)
+        s_all, lo_all, hi_all, _ = crossing(v_probe)
+        rim_only = ~edge & (hi_all > 0) & s_all & ((hi_all > lo_all) | ((lo_all > 0) & (lo_all < 1)))
     v_all = np.broadcast_to(np.where(seen, lo, 1.0), resp.shape).copy()
     if edge.any() and m > 1:
         cols = np.flatnonzero(edge)                        # every disc point of the edge pairs, in one batch
         v_all[:, cols] = vis(np.tile(diode[cols], m), dirs[:, cols].reshape(-1, 3)).reshape(m, len(cols))
-    return np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0)), edge & (m > 1)
+    mean = np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0))
+    # where every probe agrees, the box's visibility over the whole disc (1 where undefined)
+    steady = np.where(~(edge | rim_only) & seen, lo, np.nan) if rim is not None else np.full(n, np.nan)
+    return mean, rim_only & (m > 1), steady, edge & (m > 1)
 
 
-# The body box's shadow edge across the solar disc: Gauss-Legendre in the disc's area coordinate (r/a)^2 x
-# equally spaced azimuths. A shadow that leaves a sliver of the disc's rim lit (depth 1 % of the radius,
-# 0.1 % of the disc) falls between the equal-area rings' points (the outermost of 11 rings sits at 0.98 of
-# the radius); the outermost of 16 Gauss nodes sits at 0.9973, and 64 azimuths resolve a sliver 16 deg wide.
+# The body box's shadow edge across only the solar disc's rim, or the diode's horizon across the disc:
+# Gauss-Legendre in the disc's area coordinate (r/a)^2 x equally spaced azimuths. A shadow that leaves a
+# sliver of the rim lit (depth 1 % of the radius, 0.1 % of the disc) falls between the equal-area rings'
+# points (the outermost of 11 rings sits at 0.98 of the radius); the outermost of 16 Gauss nodes sits at
+# 0.9973, and 64 azimuths resolve a sliver 16 deg wide. (Edges across the disc's interior take the 397
+# points of the kinks: the box's polygons make 1024 points cost ~9 ms a pair.)
 _EDGE_RADIAL, _EDGE_AZIMUTHS = 16, 64
 
 
@@ -536,21 +551,36 @@ def _polar_disc_offsets(radius_rad, n_r=_EDGE_RADIAL, n_phi=_EDGE_AZIMUTHS):
     return off, np.repeat(0.5 * w, n_phi) / n_phi
 
 
-def _edge_mean(sun_body, radius_rad, diode, frames, resps, body):
+def _edge_mean(sun_body, radius_rad, diode, frames, resps, body, steady=None):
     """Return (T,): the disc mean of the response times the body box's visibility (if ``body``) for
     (sun_body[t], diode[t]) pairs by the product quadrature of :func:`_polar_disc_offsets` (a disc the Earth
-    does not cut)."""
+    does not cut); ``steady`` (T,): the visibility where it is known not to vary over the disc (NaN: trace
+    it at every point)."""
     off, w = _polar_disc_offsets(radius_rad)
     d = _disc_directions(sun_body, off)                                       # (M, T, 3)
     wt = np.broadcast_to(w[:, None], d.shape[:2])
     cos_alpha = 1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))
     wt = wt / wt.sum(axis=0) / float(np.sum(w * cos_alpha))
     resp = _pair_response(resps, frames, diode, d)[1]
+    out = np.einsum("mn,mn->n", wt, resp)
     if body is None:
-        return np.einsum("mn,mn->n", wt, resp)
-    v = pair_visibility(resps, frames, body.positions_m, body.panel_normals, np.tile(diode, len(d)),
-                        d.reshape(-1, 3), body.half_m).reshape(resp.shape)
-    return np.einsum("mn,mn->n", wt, resp * np.nan_to_num(v, nan=1.0))
+        return out
+    # the box's visibility point by point only where the probes did not agree on one value
+    steady = np.full(len(diode), np.nan) if steady is None else np.asarray(steady, float)
+    out = out * np.where(np.isnan(steady), 1.0, steady)
+    t = np.flatnonzero(np.isnan(steady))
+    if t.size:
+        # The box's edge reaches only the rim (the centre and the outer ring's probes agree): the points
+        # inside 0.85 of the radius take the centre's visibility, the outer ones are traced one by one.
+        outer = np.flatnonzero(np.hypot(off[:, 0], off[:, 1]) >= 0.85 * radius_rad)
+        inner = np.setdiff1d(np.arange(len(d)), outer)
+        v = np.empty((len(d), t.size))
+        v[inner] = pair_visibility(resps, frames, body.positions_m, body.panel_normals, diode[t],
+                                   d[0, t] * 0 + sun_body[t], body.half_m)[None]
+        v[outer] = pair_visibility(resps, frames, body.positions_m, body.panel_normals, np.tile(diode[t], len(outer)),
+                                   d[outer][:, t].reshape(-1, 3), body.half_m).reshape(len(outer), t.size)
+        out[t] = np.einsum("mn,mn->n", wt[:, t], resp[:, t] * np.nan_to_num(v, nan=1.0))
+    return out
 
 
 def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None,
@@ -564,9 +594,10 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
 
     The disc is sampled by ``rings`` equal-area rings (37 points); where the response has a kink
     inside the disc (the diode's horizon or the well's cut-off or full-light edge crosses it) the
-    average is taken again with ``refine_rings`` (397 points); where the body box's shadow edge (probed
-    at 32 points of its rim too) or the diode's horizon crosses it and the Earth does not, with the
-    product quadrature of :func:`_polar_disc_offsets` (1024 points reaching 0.997 of the radius).
+    average is taken again with ``refine_rings`` (397 points); where the body box's shadow edge reaches
+    only the disc's rim (32 probes there disagree, the centre and outer ring agree) or the diode's horizon
+    crosses it, and the Earth does not, with the product quadrature of :func:`_polar_disc_offsets` (1024
+    points reaching 0.997 of the radius).
 
     The work runs on (epoch, diode) pairs: only those with part of the disc in front of the diode
     (the others read exactly 0 for the responses of :mod:`simcore.radiometry.response` and wells), and
@@ -590,29 +621,34 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         ang = 2.0 * np.pi * np.arange(32) / 32
         edge_probe = _disc_directions(sun_body, 0.999 * sun_angular_radius_rad
                                       * np.column_stack([np.cos(ang), np.sin(ang)]))[:, ep]
-    out[ep, diode], edge = _disc_mean(d, weights[:, ep], resp, diode, frames, resps, body, rings, edge_probe)
+    out[ep, diode], edge, steady, inside = _disc_mean(d, weights[:, ep], resp, diode, frames, resps, body, rings,
+                                                      edge_probe)
     if len(dirs) == 1 or refine_rings <= rings:
         return out
     # The diode's own horizon across the disc: a sliver of the disc above it can lie beyond every point of
     # the 397-point rule (rendered 5e-4 W/m^2 where it gave 0, 5 standard errors, on a bare tilt0_fov90 day).
-    edge |= np.abs(np.einsum("tj,tj->t", sun_body[ep], frames[diode, 2])) < np.sin(sun_angular_radius_rad)
+    horizon = np.abs(np.einsum("tj,tj->t", sun_body[ep], frames[diode, 2])) < np.sin(sun_angular_radius_rad)
+    edge |= horizon & (edge | ~np.isnan(steady) | (body is None))   # (an edge across the interior: 37 points)
+    cut = np.zeros(n_ep, bool)
     if earth_body_m is not None:
-        # where the Earth's limb cuts the disc too, the 397-point refinement below weighs the visible points
+        # where the Earth's limb cuts the disc too, the rules of the kinks below (unchanged) weigh the points
         dist = np.linalg.norm(earth_body_m, axis=1)
         sep = np.arccos(np.clip(np.einsum("nj,nj->n", sun_body, earth_body_m) / dist, -1.0, 1.0))
-        limb = np.arcsin(np.minimum(radius_m / dist, 1.0))
-        edge &= ~(np.abs(sep - limb) < sun_angular_radius_rad)[ep]
+        cut = np.abs(sep - np.arcsin(np.minimum(radius_m / dist, 1.0))) < sun_angular_radius_rad
+        edge &= ~cut[ep]
     if edge.any():
         # the body's shadow edge across the disc: the product quadrature (:data:`_EDGE_RADIAL`)
         e_ep, e_k = ep[edge], diode[edge]
-        out[e_ep, e_k] = _edge_mean(sun_body[e_ep], sun_angular_radius_rad, e_k, frames, resps, body)
-        ep, diode, lit, resp = ep[~edge], diode[~edge], lit[:, ~edge], resp[:, ~edge]
+        out[e_ep, e_k] = _edge_mean(sun_body[e_ep], sun_angular_radius_rad, e_k, frames, resps, body,
+                                    np.where(horizon, steady, np.nan)[edge])
+        ep, diode, lit, resp, inside = ep[~edge], diode[~edge], lit[:, ~edge], resp[:, ~edge], inside[~edge]
     # Kinks: probe the disc's very edge too (the quadrature rings stop short of it).
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
     rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
     lit_rim, resp_rim = _pair_response(resps, frames, diode, rim[:, ep])
     lit_any = (resp > 0).any(axis=0) | (resp_rim > 0).any(axis=0)
     kink = lit_any & ((resp == 0).any(axis=0) | (resp_rim == 0).any(axis=0) | partial_earth[ep])
+    kink |= inside & ~cut[ep]   # the box's edge across a clear disc's interior: 397 points (1024: ~9 ms a pair)
     # the well's full-light edge
     full = (lit == 1).any(axis=0) | (lit_rim == 1).any(axis=0)
     kink |= full & ((lit < 1).any(axis=0) | (lit_rim < 1).any(axis=0))
