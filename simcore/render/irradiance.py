@@ -241,17 +241,6 @@ def _mix32(*parts):
     return (h & np.uint64(0xFFFFFFFF)).astype(np.uint32)
 
 
-def _padded_rows(a, cls, pad=64):
-    """Return ``cls`` arrays of the rows of the 2-D float32 ``a``, each taken from a buffer with ``pad``
-    spare elements after its end. A guard, not a proven fix: two full-suite runs died once each on a
-    64-byte vector load that crossed into the unmapped page after some array (cause not established);
-    should a kernel read whole packets of a host buffer past its end, the slack keeps that read mapped."""
-    n = a.shape[1]
-    buf = np.zeros((a.shape[0], n + pad), dtype=np.float32)
-    buf[:, :n] = a
-    return [cls(buf[i, :n]) for i in range(a.shape[0])]
-
-
 def _unit(v, name):
     n = np.linalg.norm(v, axis=-1)
     bad = np.isfinite(n) & (np.abs(n - 1.0) > 1e-6)
@@ -351,7 +340,9 @@ class Renderer:
 
     # -- helpers for Dr.Jit
     def _v3(self, arr):
-        return self._mi.Vector3f(*_padded_rows(np.asarray(arr, dtype=np.float32).T, self._mi.Float))
+        mi = self._mi
+        a = np.ascontiguousarray(np.asarray(arr, dtype=np.float32).T)
+        return mi.Vector3f(mi.Float(a[0]), mi.Float(a[1]), mi.Float(a[2]))
 
     def _gather3(self, src, idx):
         dr, mi = self._dr, self._mi
@@ -1032,8 +1023,9 @@ class Renderer:
              + fy[..., None] * base["V"][:, None, None])
         d = np.broadcast_to(dirs[:, :, None], o.shape)
         mi = self._mi
-        ray = mi.Ray3f(mi.Point3f(*_padded_rows(o.reshape(-1, 3).T.astype(np.float32), mi.Float)),
-                       mi.Vector3f(*_padded_rows(d.reshape(-1, 3).T.astype(np.float32), mi.Float)))
+        o32 = np.ascontiguousarray(o.reshape(-1, 3).T.astype(np.float32))
+        d32 = np.ascontiguousarray(d.reshape(-1, 3).T.astype(np.float32))
+        ray = mi.Ray3f(mi.Point3f(*(mi.Float(x) for x in o32)), mi.Vector3f(*(mi.Float(x) for x in d32)))
         blocked = np.asarray(self._scene.ray_test(ray).numpy(), bool).reshape(T, D, P)
         seen = np.broadcast_to(((lit > 0) & (x1 - x0 > 2 * inset) & (y1 - y0 > 2 * inset))[..., None], blocked.shape)
         some = (blocked & seen).any(axis=(1, 2))
