@@ -314,19 +314,18 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     from drjit.llvm import Float, Float64, UInt32
 
     F = Float if precision == "single" else Float64
-    np_f = np.float32 if precision == "single" else np.float64
     n_ep, K = r_sat.shape[0], frames.shape[0]
     rows, first, count = cell_runs(r_sat, sun_unit, refl)
     W = rows.shape[1]
     # Lane order (piece, epoch, row): second pieces are mostly empty and then fill whole SIMD packets.
-    lane_row = UInt32(np.ascontiguousarray(rows.transpose(2, 0, 1)).reshape(-1).astype(np.uint32))
-    lane_first = UInt32(np.ascontiguousarray(first.transpose(2, 0, 1)).reshape(-1).astype(np.uint32))
-    lane_count = UInt32(np.ascontiguousarray(count.transpose(2, 0, 1)).reshape(-1).astype(np.uint32))
+    lane_row = _llvm.host_array(UInt32, rows.transpose(2, 0, 1))
+    lane_first = _llvm.host_array(UInt32, first.transpose(2, 0, 1))
+    lane_count = _llvm.host_array(UInt32, count.transpose(2, 0, 1))
     n_lanes = 2 * n_ep * W
     lane_ep = dr.arange(UInt32, n_lanes) // W % n_ep
 
     def table(a):
-        return F(np.ascontiguousarray(a, dtype=np_f).reshape(-1))
+        return _llvm.host_array(F, a)
 
     def per_epoch(a):
         return dr.gather(F, table(a), lane_ep)
@@ -400,7 +399,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     if comp is not None:
         nt, nph = visibility.mask.shape[1:]
         marked = visibility.mask.reshape(K, -1).any(axis=1)
-        slots = UInt32(comp[0].reshape(-1))
+        slots = _llvm.host_array(UInt32, comp[0])
         fine, half = table(comp[1]), table(comp[2])
         sub, h = comp[3], comp[3] // 2
     state = (dr.zeros(UInt32, n_lanes), *[dr.zeros(F, n_lanes) for _ in range(n_acc)])
