@@ -136,17 +136,25 @@ def test_the_field_correlation_at_one_correlation_length_is_the_gaussian_spectru
     ip, iq = hp.vec2pix(weather.nside, *p.T), hp.vec2pix(weather.nside, *q.T)
     d = np.arccos(np.clip(np.sum(np.array(hp.pix2vec(weather.nside, ip)).T * np.array(hp.pix2vec(weather.nside, iq)).T,
                                  1), -1, 1))
-    expected = _gaussian_spectrum_correlation(d, scale).mean()        # the pixels' own separations, within L/25 of L
-    # One estimate per independent realisation (the field has unit variance: E[g_p g_q] = rho(d)); their spread
-    # gives the standard error. |t| > 4 with 29 degrees of freedom: false-alarm rate 4e-4.
-    fields = [weather.field_healpix(s) for s in range(30)]
-    r = np.array([np.mean(g[ip] * g[iq]) for g in fields])
-    se = r.std(ddof=1) / np.sqrt(len(r))
-    assert abs(r.mean() - expected) <= 4 * se, (r.mean(), expected, se)
-    assert se < 0.02                         # the test can tell 0.61 from a 20 % longer length's 0.71
-    # and the field has unit variance at every pixel (same realisations, same t test)
-    g2 = np.array([np.mean(g[ip] ** 2) for g in fields])
-    assert abs(g2.mean() - 1) <= 4 * g2.std(ddof=1) / np.sqrt(len(g2)), (g2.mean(), g2.std(ddof=1))
+    rho = _gaussian_spectrum_correlation(d, scale)                  # the pixels' own separations, within L/25 of L
+    # Per independent realisation (30, fixed seeds): the mean product g_p g_q (the field has unit variance, so
+    # E = rho(d)), the share of pairs with both above 0, and the mean square; their spread over the realisations
+    # gives each one's standard error.
+    stats_ = []
+    for s in range(30):
+        g = weather.field_healpix(s)
+        stats_.append((np.mean(g[ip] * g[iq]), np.mean((g[ip] > 0) & (g[iq] > 0)), np.mean(g[ip] ** 2)))
+    r, both, g2 = np.array(stats_).T
+
+    def t_ok(x, expected):          # |t| > 4 with 29 degrees of freedom: false-alarm rate 4e-4 each
+        return abs(x.mean() - expected) <= 4 * x.std(ddof=1) / np.sqrt(len(x))
+    assert t_ok(r, rho.mean()), (r.mean(), rho.mean())
+    assert r.std(ddof=1) / np.sqrt(len(r)) < 0.02     # so the test tells 0.61 from a 20 % longer length's 0.71
+    # The cloud mask's coherence: two cells of cloud fraction 1/2 (threshold 0) one L apart are overcast together
+    # with probability 1/4 + arcsin(rho) / (2 pi) (Sheppard 1899, the bivariate normal orthant): 0.354 at L, 0.25
+    # for independent cells.
+    assert t_ok(both, np.mean(0.25 + np.arcsin(rho) / (2 * np.pi))), both.mean()
+    assert t_ok(g2, 1.0), g2.mean()                    # unit variance at every pixel
 
 
 def test_runs_without_clouds_keep_their_settings_digest():

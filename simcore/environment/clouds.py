@@ -91,11 +91,15 @@ def clear_sky_partner(map_name):
         f"--map {' or '.join(CLOUD_PAIRS)}")
 
 
+def _check_seed(seed):
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) <= MAX_SEED:
+        raise InvalidInputError(f"--clouds takes a cloud-weather seed, a whole number from 0 to 2^64-1, got {seed}")
+
+
 def check_cloud_options(map_name, seed, scale_km=None):
     """Raise InvalidInputError unless ``seed`` (0 .. 2^64-1), ``scale_km`` (None: the default, or
     200..5000 km) and the map ``map_name`` can make cloud weather."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) <= MAX_SEED:
-        raise InvalidInputError(f"--clouds takes a cloud-weather seed, a whole number from 0 to 2^64-1, got {seed}")
+    _check_seed(seed)
     if scale_km is not None:
         lo, hi = SCALE_RANGE_KM
         try:
@@ -215,7 +219,7 @@ class CloudWeather:
         return legendre.legval(x, (2 * ell + 1) * cl) / np.sum((2 * ell + 1) * cl)
 
     def _rng(self, seed):
-        check_cloud_options(next(iter(CLOUD_PAIRS)), seed)
+        _check_seed(seed)
         return np.random.default_rng(np.random.SeedSequence([int(seed), _STREAM]))
 
     def field_healpix(self, seed):
