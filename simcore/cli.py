@@ -234,7 +234,17 @@ def cmd_view(args):
     if args.output is not None and not args.output.lower().endswith(".png"):
         raise InvalidInputError(f"-o {args.output}: the picture is a PNG; give a file name ending in .png")
     cfg = SatelliteConfig.load(config)
-    rmap = named_map(args.map or "toms2005")
+    if args.clouds is None and args.cloud_scale_km is not None:
+        raise InvalidInputError("--cloud-scale-km sets the size of cloud weather, which needs --clouds SEED; "
+                                "add --clouds or drop --cloud-scale-km")
+    if args.clouds is None:
+        rmap = named_map(args.map or "toms2005")
+    else:
+        from simcore.environment.clouds import CloudWeather, check_cloud_options
+        if args.close_up:
+            raise InvalidInputError("--clouds colours the Earth, which --close-up leaves out; drop one of them")
+        check_cloud_options(args.map or "toms2005", args.clouds, args.cloud_scale_km)
+        rmap = CloudWeather.for_map(args.map, args.cloud_scale_km).realise(args.clouds)
     Epochs.from_any(args.time)
     ve = view_epoch(args.time, tle=args.tle, satellite=args.satellite, start=args.start,
                     spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude)
@@ -592,6 +602,7 @@ def build_parser():
     v.add_argument("--close-up", action="store_true",
                    help="the satellite alone (no Earth) from two opposite sides, so every diode number shows")
     v.add_argument("--map", default=None, help="reflectivity map colouring the Earth, as for `run` (default toms2005)")
+    _add_cloud_options(v)
     v.add_argument("--tle", metavar="FILE", help=DEFAULT_TLE_HELP)
     v.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
     v.add_argument("--start", default="2016-07-02T00:00:00Z",

@@ -204,6 +204,8 @@ TINY = ["--start", "2016-07-02T00:45:00Z", "--duration", "4", "--samples", "256"
     (["run", *TINY, "--map", "ceres2018-all", "--clouds", "1", "--cloud-scale-km", "0"], "from 200 to 5000 km"),
     (["run", *TINY, "--map", "ceres2018-all", "--clouds", "1", "--cloud-scale-km", "nan"], "from 200 to 5000 km"),
     (["run", *TINY, "--map", "ceres2018-all", "--cloud-scale-km", "800"], "needs --clouds SEED"),
+    (["view", "--clouds", "1", "-o", "a.png"], "--map toms2005 has none"),
+    (["view", "--map", "ceres2018-all", "--clouds", "1", "--cloud-scale-km", "9000", "-o", "a.png"], "200 to 5000"),
     (["sweep", "--starts", "2016-07-02T00:45:00Z", "--duration", "4", "--map", "ceres2018-all", "--clouds", "1", "-2",
       "--folder", "sw"], "--clouds takes a cloud-weather seed"),
 ])
@@ -228,3 +230,10 @@ def test_a_sweep_over_cloud_seeds_gives_one_run_per_weather(tmp_path):
     assert not np.allclose(alb[0], alb[1])
     np.testing.assert_array_equal(ds["analytic"].sel(component="direct").values[0],
                                   ds["analytic"].sel(component="direct").values[1])
+
+
+def test_view_colours_the_earth_with_the_weather(tmp_path):
+    r = _sunsim(["view", "--map", "ceres2018-all", "--clouds", "1", "-o", "w.png", "--spp", "1", "--resolution", "16", "9",
+                 "--json"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "w.png").stat().st_size > 0
