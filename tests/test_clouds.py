@@ -161,7 +161,8 @@ def test_runs_without_clouds_keep_their_settings_digest():
     from simcore.pipeline.run import RunOptions
     assert "clouds" not in RunOptions().spec() and "cloud_scale_km" not in RunOptions().spec()
     spec = RunOptions(reflectivity="ceres2018-all", clouds=3).spec()
-    assert spec["clouds"] == 3 and spec["cloud_scale_km"] is None
+    assert spec["clouds"] == 3 and spec["cloud_scale_km"] == 500.0       # the default, named or not: one digest
+    assert spec == RunOptions(reflectivity="ceres2018-all", clouds=3, cloud_scale_km=500.0).spec()
 
 
 # ---- the command line ------------------------------------------------------------------------------------

@@ -39,7 +39,7 @@ from simcore.constants import AU_M, E_SUN_W_M2, R_SUN_M, TSI_W_M2
 from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.environment.maps import named_map
-from simcore.environment.clouds import CloudWeather
+from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM, CloudWeather
 from simcore.pipeline.preflight import check_map, check_numbers, check_variant, tle_age_note
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
 from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
@@ -90,6 +90,8 @@ class RunOptions:
         if d["clouds"] is None:         # runs without clouds keep the settings digest they always had
             d.pop("clouds")
             d.pop("cloud_scale_km")
+        elif d["cloud_scale_km"] is None:   # the default length named or not: one run, one digest
+            d["cloud_scale_km"] = CLOUD_SCALE_KM
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
         for k in ("config", "tle", "attitude_file"):
             v = d[k]
