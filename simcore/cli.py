@@ -102,6 +102,7 @@ def _add_render_options(p):
     p.add_argument("--map", default="toms2005", help="reflectivity map: toms2005, ceres2018-all, "
                    "ceres2018-clear, uniform:ALBEDO (one mean albedo, as Basilisk's ALBEDO_AVG, e.g. uniform:0.3) "
                    "or a .npz file (default %(default)s)")
+    _add_cloud_options(p)
     p.add_argument("--point-sun", action="store_true", help="a point Sun (no penumbra) instead of the 0.53 deg disc")
     p.add_argument("--solar-flux", choices=["physical", "thesis"], default="physical",
                    help="physical: 1361 W/m^2 at 1 AU (IAU 2015 B3, Kopp & Lean 2011) x (1 AU / r_sun)^2; "
@@ -120,6 +121,18 @@ def _add_render_options(p):
                    help="accept a reflectivity map with values above 1.2 (the shipped maps peak at 1.07)")
 
 
+def _add_cloud_options(p, many=False):
+    """Add --clouds (one seed, or with ``many`` a list: a sweep axis) and --cloud-scale-km."""
+    from simcore.environment.clouds import DEFAULT_SCALE_KM
+    p.add_argument("--clouds", type=int, nargs="+" if many else None, metavar="SEED",
+                   help="cloud weather: the map becomes one random realisation (seed"
+                        + ("s: one run each" if many else "") + ") of clear and overcast cells whose mean over "
+                        "seeds is the all-sky map; needs --map ceres2018-all (simcore/environment/clouds.py)")
+    p.add_argument("--cloud-scale-km", type=float, metavar="KM",
+                   help=f"correlation length of the cloud field, 200..5000 km (default {DEFAULT_SCALE_KM:g}: "
+                        "cloud systems ~1600 km across)")
+
+
 def run_options(args):
     """Return the simcore.pipeline.run.RunOptions of parsed ``run`` arguments."""
     from simcore.pipeline.run import RunOptions
@@ -130,6 +143,7 @@ def run_options(args):
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
         dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
+        clouds=args.clouds, cloud_scale_km=args.cloud_scale_km,
         sun_disc=not args.point_sun, chunk_epochs=args.chunk, output=args.output,
         **(dict(e_sun_w_m2=E_SUN_W_M2, distance_scaling=False) if args.solar_flux == "thesis" else {}),
         fail_on_check=args.fail_on_check, overwrite=args.overwrite, allow_bright_map=args.allow_bright_map)
@@ -251,7 +265,17 @@ def cmd_view(args):
     if args.output is not None and not args.output.lower().endswith(".png"):
         raise InvalidInputError(f"-o {args.output}: the picture is a PNG; give a file name ending in .png")
     cfg = SatelliteConfig.load(config)
-    rmap = named_map(args.map or "toms2005")
+    if args.clouds is None and args.cloud_scale_km is not None:
+        raise InvalidInputError("--cloud-scale-km sets the size of cloud weather, which needs --clouds SEED; "
+                                "add --clouds or drop --cloud-scale-km")
+    if args.clouds is None:
+        rmap = named_map(args.map or "toms2005")
+    else:
+        from simcore.environment.clouds import CloudWeather, check_cloud_options
+        if args.close_up:
+            raise InvalidInputError("--clouds colours the Earth, which --close-up leaves out; drop one of them")
+        check_cloud_options(args.map or "toms2005", args.clouds, args.cloud_scale_km)
+        rmap = CloudWeather.for_map(args.map, args.cloud_scale_km).realise(args.clouds)
     Epochs.from_any(args.time)
     ve = view_epoch(args.time, tle=args.tle, satellite=args.satellite, start=args.start,
                     spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude)
@@ -455,7 +479,9 @@ def cmd_sweep(args):
                       rel_se_direct=None if samples else args.accuracy[0],
                       rel_se_albedo=None if samples else args.accuracy[1],
                       direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
-                      reflectivity=args.map, sun_disc=not args.point_sun, chunk_epochs=args.chunk)
+                      reflectivity=args.map, cloud_scale_km=args.cloud_scale_km, sun_disc=not args.point_sun,
+                      chunk_epochs=args.chunk)
+    clouds = args.clouds or [None]
     log = (lambda m: None) if args.json else print
     # Every point's numbers, dates and configuration are checked here, not in a Dask worker hours later.
     from scenes.config import SatelliteConfig
@@ -463,10 +489,11 @@ def cmd_sweep(args):
     from simcore.pipeline.sweep import sweep_points
     for cfg in args.configs:
         SatelliteConfig.load(cfg)
-    for point in sweep_points(base, args.configs[:1], args.starts, args.spin_rates, args.seeds, args.folder):
+    for point in sweep_points(base, args.configs[:1], args.starts, args.spin_rates, args.seeds, args.folder,
+                              clouds=clouds):
         check_numbers(point)
     _output_folder(args.folder, "--folder")
-    path, ds = sweep(base, args.configs, args.starts, args.spin_rates, args.seeds, args.folder,
+    path, ds = sweep(base, args.configs, args.starts, args.spin_rates, args.seeds, args.folder, clouds=clouds,
                      scheduler=args.scheduler, workers=args.workers, log=log)
     passed = int(ds["check_pass"].values.sum())
     out = {"sweep": path, "runs": int(ds.sizes["run"]), "checks_passed": passed}
@@ -606,6 +633,7 @@ def build_parser():
     v.add_argument("--close-up", action="store_true",
                    help="the satellite alone (no Earth) from two opposite sides, so every diode number shows")
     v.add_argument("--map", default=None, help="reflectivity map colouring the Earth, as for `run` (default toms2005)")
+    _add_cloud_options(v)
     v.add_argument("--tle", metavar="FILE", help=DEFAULT_TLE_HELP)
     v.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
     v.add_argument("--start", default="2016-07-02T00:00:00Z",
@@ -669,7 +697,8 @@ def build_parser():
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_estimate)
 
-    w = sub.add_parser("sweep", help="configurations x start dates x spin rates x seeds on Dask, into one dataset")
+    w = sub.add_parser("sweep", help="configurations x start dates x spin rates x seeds (x cloud seeds) on Dask, "
+                                     "into one dataset")
     w.add_argument("--configs", nargs="+", default=["tilt20_fov70"], metavar="CONFIG")
     w.add_argument("--starts", nargs="+", default=["2016-07-02T00:00:00Z"], metavar="ISO")
     w.add_argument("--spin-rates", nargs="+", type=float, default=[1.9], metavar="DEG_S")
@@ -681,6 +710,7 @@ def build_parser():
     w.add_argument("--accuracy", nargs=2, type=float, metavar=("DIRECT", "ALBEDO"), default=(0.002, 0.01))
     w.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"))
     w.add_argument("--map", default="toms2005")
+    _add_cloud_options(w, many=True)
     w.add_argument("--point-sun", action="store_true")
     w.add_argument("--chunk", type=int, default=512, metavar="EPOCHS")
     w.add_argument("--folder", default="runs/sweep", help="where the runs and sweep.nc go (default %(default)s)")

@@ -73,6 +73,19 @@ def check_numbers(opts):
         raise InvalidInputError(f"--seed must be a whole number from 0 to 2^64-1 ({MAX_SEED}), got {opts.seed}")
     if int(opts.chunk_epochs) != opts.chunk_epochs or opts.chunk_epochs < 1:
         raise InvalidInputError(f"--chunk must be a positive number of epochs, got {opts.chunk_epochs}")
+    check_clouds(opts)
+
+
+def check_clouds(opts):
+    """Raise InvalidInputError unless ``opts``' cloud weather (seed, correlation length, map) can be made."""
+    from simcore.environment.clouds import check_cloud_options
+    clouds, scale_km = getattr(opts, "clouds", None), getattr(opts, "cloud_scale_km", None)
+    if clouds is None:
+        if scale_km is not None:
+            raise InvalidInputError("--cloud-scale-km sets the size of cloud weather, which needs --clouds SEED; "
+                                    "add --clouds or drop --cloud-scale-km")
+        return
+    check_cloud_options(opts.reflectivity, clouds, scale_km)
 
 
 def check_variant(variant):

@@ -39,6 +39,7 @@ from simcore.constants import AU_M, E_SUN_W_M2, R_SUN_M, TSI_W_M2
 from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.environment.maps import named_map
+from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM, CloudWeather
 from simcore.pipeline.preflight import check_map, check_numbers, check_variant, tle_age_note
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
 from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
@@ -69,6 +70,8 @@ class RunOptions:
     variant: str = None
     seed: int = 0
     reflectivity: str = "toms2005"
+    clouds: int = None                 # cloud-weather seed (simcore.environment.clouds); None: the map as it is
+    cloud_scale_km: float = None       # the clouds' correlation length (None: clouds.DEFAULT_SCALE_KM)
     sun_disc: bool = True              # finite solar disc: penumbra
     e_sun_w_m2: float = TSI_W_M2        # solar irradiance at 1 AU (the thesis: E_SUN_W_M2 = 1366.1)
     distance_scaling: bool = True      # x (1 AU / r_sun)^2 (the thesis: a constant, False)
@@ -84,6 +87,11 @@ class RunOptions:
         for k in ("output", "fail_on_check", "chunk_epochs", "overwrite", "allow_bright_map"):
             d.pop(k)
         d["dead"] = sorted(int(i) for i in d["dead"])
+        if d["clouds"] is None:         # runs without clouds keep the settings digest they always had
+            d.pop("clouds")
+            d.pop("cloud_scale_km")
+        elif d["cloud_scale_km"] is None:   # the default length named or not: one run, one digest
+            d["cloud_scale_km"] = CLOUD_SCALE_KM
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
         for k in ("config", "tle", "attitude_file"):
             v = d[k]
@@ -142,7 +150,12 @@ class PreparedRun:
                                            extra_flat_diodes=True if opts.extra_flat_diodes else None)
         self.orbit, self.attitude, self.geometry = study_geometry(opts)
         self.epochs = self.geometry.epochs
-        self.map = named_map(opts.reflectivity)
+        self.clouds = None
+        if getattr(opts, "clouds", None) is None:
+            self.map = named_map(opts.reflectivity)
+        else:
+            self.clouds = CloudWeather.for_map(opts.reflectivity, opts.cloud_scale_km)
+            self.map = self.clouds.realise(opts.clouds)
         self.map_refined = _refined(self.map, CHECK_REFINE)
         self._renderer = None
 
@@ -403,6 +416,8 @@ def build_dataset(study, data, variant):
         "command_line": shlex.join([os.path.basename(sys.argv[0]) or "python"] + sys.argv[1:]),
         "sunsim_version": __version__ + (f" (git {_git_commit()})" if _git_commit() else ""),
     })
+    if study.clouds is not None:
+        ds.attrs.update(study.clouds.attrs(o.clouds))
     flags, report = check_run(ds)
     ds["outlier"] = (("time", "diode", "component"), np.stack([flags["direct"], flags["albedo"]], axis=-1).astype(np.int8),
                      {"units": "1", "long_name": "1 where the check's normal score |z| > 4 (or an exact value is off)"})

@@ -1,4 +1,4 @@
-"""Parameter sweeps on Dask: configurations x start dates x spin rates x seeds.
+"""Parameter sweeps on Dask: configurations x start dates x spin rates x seeds (x cloud-weather seeds).
 
 Every point of the sweep is an ordinary resumable run (:mod:`simcore.pipeline.run`)
 writing its own file under ``<folder>/runs/``; Dask only schedules them. A
@@ -8,7 +8,9 @@ system). Started again, a sweep skips finished runs and resumes unfinished
 ones from their last chunk. The results land in one dataset,
 ``<folder>/sweep.nc``, with a ``run`` dimension (a ``step`` axis with ``t_s``, the
 seconds since each run's start; diodes and steps padded with NaN to the
-largest run).
+largest run). Cloud seeds (``clouds``, :mod:`simcore.environment.clouds`) are one more axis: one run per
+realisation of the weather, so that error distributions over weather come out (``cloud_seed`` along
+``run``).
 """
 import dataclasses
 import itertools
@@ -25,11 +27,13 @@ from simcore.pipeline.run import execute, open_run
 from simcore.pipeline.store import atomic_write, spec_digest
 
 
-def sweep_points(base, configs, starts, spin_rates, seeds, folder):
-    """Return the RunOptions of every sweep point (their outputs under ``folder/runs``)."""
+def sweep_points(base, configs, starts, spin_rates, seeds, folder, clouds=(None,)):
+    """Return the RunOptions of every sweep point (their outputs under ``folder/runs``); ``clouds``: the
+    cloud-weather seeds (None: the map as it is)."""
     points = []
-    for config, start, rate, seed in itertools.product(configs, starts, spin_rates, seeds):
-        opts = dataclasses.replace(base, config=config, start=start, spin_rate_deg_s=float(rate), seed=int(seed))
+    for config, start, rate, seed, cloud in itertools.product(configs, starts, spin_rates, seeds, clouds):
+        opts = dataclasses.replace(base, config=config, start=start, spin_rate_deg_s=float(rate), seed=int(seed),
+                                   clouds=None if cloud is None else int(cloud))
         name = f"{os.path.splitext(os.path.basename(config))[0]}_{spec_digest(opts.spec())}.nc"
         points.append(dataclasses.replace(opts, output=os.path.join(folder, "runs", name)))
     return points
@@ -92,6 +96,8 @@ def combine(points, out_path):
         start=("run", np.array([p.start for p in points], dtype=object)),
         spin_rate_deg_s=("run", np.array([p.spin_rate_deg_s for p in points])),
         seed=("run", np.array([p.seed for p in points])),
+        **({"cloud_seed": ("run", np.array([p.clouds for p in points], dtype=np.uint64))}
+           if all(p.clouds is not None for p in points) else {}),
         file=("run", np.array([os.path.basename(p.output) for p in points], dtype=object)),
     )
     ds["check_pass"] = ("run", np.array([int(r["pass"]) for r in reports], np.int8))
@@ -105,16 +111,19 @@ def combine(points, out_path):
     return ds
 
 
-def sweep(base, configs, starts, spin_rates, seeds, folder, *, scheduler=None, workers=2, log=print):
-    """Run a whole sweep into ``folder`` and return (path of sweep.nc, Dataset)."""
-    for name, values in (("configs", configs), ("starts", starts), ("spin rates", spin_rates), ("seeds", seeds)):
+def sweep(base, configs, starts, spin_rates, seeds, folder, *, clouds=(None,), scheduler=None, workers=2,
+          log=print):
+    """Run a whole sweep into ``folder`` and return (path of sweep.nc, Dataset); ``clouds``: cloud-weather
+    seeds, one more axis (None: the map as it is)."""
+    for name, values in (("configs", configs), ("starts", starts), ("spin rates", spin_rates), ("seeds", seeds),
+                         ("cloud seeds", clouds)):
         if not values:
             raise ValueError(f"a sweep needs at least one value for {name}")
     for c in configs:          # fail here, with the user's words, rather than inside a worker
         SatelliteConfig.load(c)
     Epochs.from_any(list(starts))
     os.makedirs(os.path.join(folder, "runs"), exist_ok=True)
-    points = sweep_points(base, configs, starts, spin_rates, seeds, folder)
+    points = sweep_points(base, configs, starts, spin_rates, seeds, folder, clouds=clouds)
     run_sweep(points, scheduler=scheduler, workers=workers, log=log)
     out = os.path.join(folder, "sweep.nc")
     if os.path.exists(out):
