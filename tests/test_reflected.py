@@ -2,8 +2,8 @@
 
 Every Monte-Carlo assertion is a z-test |estimate - oracle| < 3.3 standard errors (the renderer's own
 standard error from its pairs of samples per stratum): a false-alarm rate of 1e-3 per value for a normal
-estimate; the file makes 12 such assertions, so by Bonferroni a correct renderer fails it with probability
-< 1.2 %, and never with the fixed seeds used here (the results are bitwise reproducible). Each geometry has
+estimate; the file makes 18 such assertions, so by Bonferroni a correct renderer fails it with probability
+< 1.8 %, and never with the fixed seeds used here (the results are bitwise reproducible). Each geometry has
 a parametrised negative case: the same rendering compared with the oracle of a deliberately wrong input
 (mirror edge, complex index, reflectance) must be rejected (|z| > 3.3), so the tests can fail.
 """
@@ -245,3 +245,45 @@ def test_bad_reflected_arguments():
         Renderer(_diode(0.001), max_depth=0)
     with pytest.raises(ValueError, match="unknown material 'chrome'"):
         Renderer(_diode(0.001), _quad([[-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], "chrome"))
+
+
+# ------------------------------------------------------------------------------------------ many bounces
+# An integrating sphere: a Lambertian sphere of radius Rs and reflectance rho (an icosphere of 20480 facets,
+# area 0.9997 of the sphere's) with a port (the cap within 30 deg of +z removed, area fraction
+# f = (1 - cos 30 deg) / 2), the Sun at the zenith shining through the port (flux Phi = E pi (Rs sin 30 deg)^2
+# onto the far wall). Every wall element irradiates every other one alike (cos1 cos2 / d^2 = 1 / (4 Rs^2) on a
+# sphere), so after i reflections the wall's irradiance is rho Phi / A (rho (1 - f))^(i-1), A = 4 pi Rs^2,
+# and with up to D reflections the diode on the wall (its normal along the inner normal, no direct Sun) reads
+#   rho Phi / A  sum_{i<D} (rho (1 - f))^i        (Labsphere, "A Guide to Integrating Sphere Theory", eq. 8).
+# This exercises the BSDF sampling, the depth limit and the Russian roulette (from the fourth vertex).
+RS, PORT = 0.1, np.radians(30.0)
+
+
+def _sphere_oracle(rho, depth):
+    f = (1 - np.cos(PORT)) / 2
+    phi = E * np.pi * (RS * np.sin(PORT)) ** 2
+    return rho * phi / (4 * np.pi * RS ** 2) * sum((rho * (1 - f)) ** i for i in range(depth))
+
+
+@pytest.mark.parametrize("rho, depth, oracle_rho, oracle_depth, agrees", [
+    (0.5, 40, 0.5, 40, True),          # all bounces that matter ((rho (1 - f))^40 ~ 1e-12)
+    (0.8, 40, 0.8, 40, True),
+    (0.8, 2, 0.8, 2, True),            # the first two reflections only
+    (0.8, 40, 0.8, 2, False),          # negative: the oracle stops too early
+    (0.5, 40, 0.45, 40, False),        # negative: the oracle's reflectance 10 % low
+])
+def test_integrating_sphere(rho, depth, oracle_rho, oracle_depth, agrees):
+    sph = trimesh.creation.icosphere(subdivisions=5, radius=RS)
+    c = sph.triangles_center
+    m = trimesh.Trimesh(sph.vertices, sph.faces[c[:, 2] / np.linalg.norm(c, axis=1) < np.cos(PORT)], process=False)
+    m.metadata["material"] = {"type": "diffuse", "reflectance": {"type": "uniform", "value": rho}}
+    frame = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])      # n = -x: into the sphere
+    ds = DiodeSurfaces(np.array([[RS - 2e-4, 0.0, 0.0]]), frame[None], [[0.002, 0.002]])
+    res = Renderer(ds, m, e_sun_w_m2=E, max_depth=depth).render([[0.0, 0.0, 1.0]], seed=2,
+                                                                 reflected_samples=65536)
+    expected = _sphere_oracle(oracle_rho, oracle_depth)
+    z = _z(res, expected)
+    # facets: the polyhedron's area is 0.9997 of the sphere's; allow that 3e-4 relative besides the 3.3 se
+    assert (abs(res.reflected_w_m2[0, 0] - expected) < Z_MAX * res.reflected_se_w_m2[0, 0] + 3e-4 * expected) == agrees, \
+        (res.reflected_w_m2, res.reflected_se_w_m2, expected, z)
+    assert res.direct_w_m2[0, 0] == 0.0

@@ -595,50 +595,48 @@ class Renderer:
 
     # -- reflected kernel: paths from the diode off the spacecraft's BSDFs (module docstring)
     def _reflected_kernel(self, t, task, j):
+        """Return the per-lane ``reflected`` irradiance (W/m^2) of tasks ``t``: a wavefront, one launch per
+        path vertex, whose code does not depend on the depth (it is compiled once and reused)."""
         dr, mi = self._dr, self._mi
         scene = self._pt
         D = self.max_depth
-        m = dr.maximum(dr.gather(mi.UInt32, mi.UInt32(t["m"].astype(np.uint32)), task), 1)
-        h = j >> 1
-        row = h // m
-        col = ((h - row * m) << 1) + (row & 1)
-        key = dr.gather(mi.UInt32, mi.UInt32(t["key"]), task)
-        r = self._rand(key, j, 2 + 4 * D + 3)
-        inv = dr.gather(mi.Float, mi.Float((0.5 / t["m"]).astype(np.float32)), task)
-        fx = (mi.Float(col) + r[0] + r[1] - 1.0) * inv
-        fy = (mi.Float(row) + r[0] - r[1]) * inv
-        fx = fx - dr.floor(fx) - 0.5
-        fy = fy - dr.floor(fy) - 0.5
-        g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
-        o = g3("pos") + fx * g3("U") + fy * g3("V")
-        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
-        loc = mi.warp.square_to_cosine_hemisphere(mi.Point2f(r[2], r[3]))
-        d = dr.normalize(loc.x * fr[0] + loc.y * fr[1] + loc.z * fr[2])
-        s = g3("sun")
-        E = dr.gather(mi.Float, mi.Float(t["E"].astype(np.float32)), task)
+        n_pairs = 2 + 4 * D + 3                       # TEA calls per lane (2 floats each)
         a = self.sun_angular_radius_rad if self.sun_angular_radius_rad > 0 else SUN_ANGULAR_RADIUS_RAD
-        omc_max = 2.0 * np.sin(a / 2) ** 2                     # 1 - cos a
-        cos_a = 1.0 - omc_max
-        p_sun = 1.0 / (2.0 * np.pi * omc_max)                  # uniform in solid angle over the disc
-        # disc radiance: int L cos(d, s) dOmega = E  =>  L = E / (Omega (1 + cos a) / 2)
-        L_sun = E * dr.opaque(mi.Float, 2.0 * p_sun / (1.0 + cos_a))
-        R2 = dr.opaque(mi.Float, self.earth_radius_m ** 2)
+        omc_max = 2.0 * np.sin(a / 2) ** 2            # 1 - cos a
+        p_sun = 1.0 / (2.0 * np.pi * omc_max)         # uniform in solid angle over the disc
         has_earth = t["earth"] is not None
         do_albedo = "rot" in t
-        if has_earth:
-            c0 = g3("earth")                                   # Earth's centre from the diode centre
-            pos = g3("pos")
-        if do_albedo:
-            s_e = g3("sun_e")
-            E_e = dr.gather(mi.Float, mi.Float(t["E_e"].astype(np.float32)), task)
-            rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
-            xmax = dr.gather(mi.Float, mi.Float(t["xmax"].astype(np.float32)), task)
-            w_, e1, e2 = g3("w"), g3("e1"), g3("e2")
-            p_earth = 1.0 / (2.0 * np.pi * xmax)               # uniform in solid angle over the cap
+        ctx = mi.BSDFContext()
+
+        def env():
+            """Per-lane task data (gathered anew in each launch)."""
+            g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
+            v = dict(key=dr.gather(mi.UInt32, mi.UInt32(t["key"]), task), s=g3("sun"), pos=g3("pos"),
+                     E=dr.gather(mi.Float, mi.Float(t["E"].astype(np.float32)), task))
+            # disc radiance: int L cos(d, s) dOmega = E  =>  L = E / (Omega (1 + cos a) / 2)
+            v["L_sun"] = v["E"] * dr.opaque(mi.Float, 2.0 * p_sun / (2.0 - omc_max))
+            if has_earth:
+                v["c0"] = g3("earth")                 # Earth's centre from the diode's centre
+            if do_albedo:
+                v.update(s_e=g3("sun_e"), w=g3("w"), e1=g3("e1"), e2=g3("e2"),
+                         E_e=dr.gather(mi.Float, mi.Float(t["E_e"].astype(np.float32)), task),
+                         xmax=dr.gather(mi.Float, mi.Float(t["xmax"].astype(np.float32)), task),
+                         rot=[self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)])
+                v["p_earth"] = 1.0 / (2.0 * np.pi * v["xmax"])   # uniform in solid angle over the cap
+            return v
+
+        def rand(v, first_pair, n):
+            """Return 2n uniform floats from the lane's TEA stream, pairs first_pair.. (opaque: one kernel)."""
+            idx = j * n_pairs + dr.opaque(mi.UInt32, first_pair)
+            out = []
+            for i in range(n):
+                x, y = mi.sample_tea_32(v["key"], idx + i, _TEA_ROUNDS)
+                out += [mi.Float(x >> 8) * (1.0 / 16777216.0), mi.Float(y >> 8) * (1.0 / 16777216.0)]
+            return out
 
         def earth_blocks(c, dd):
             b = dr.dot(dd, c)
-            return (b > 0) & (dr.squared_norm(c - b * dd) < R2)
+            return (b > 0) & (dr.squared_norm(c - b * dd) < dr.opaque(mi.Float, self.earth_radius_m ** 2))
 
         def spawn(si, dd):
             nn = si.n
@@ -658,109 +656,128 @@ class Renderer:
             b1, b2 = mi.coordinate_system(axis)
             return dr.normalize(axis * (1.0 - omc) + sin_t * (dr.cos(phi) * b1 + dr.sin(phi) * b2))
 
-        ctx = mi.BSDFContext()
-        n_d = fr[2]
         planes = self._mirror_normals
+
+        def p_spec(v, dd):
+            """Density (1/sr) of the mirror-image strategy for diode directions dd."""
+            cnt = mi.Float(0.0)
+            for pl in planes:
+                m_ = mi.Vector3f(*map(float, pl))
+                cnt += dr.select(in_disc(dd, v["s"] - 2.0 * dr.dot(v["s"], m_) * m_), 1.0, 0.0)
+            return cnt * (p_sun / len(planes))
+
+        # ---- launch 0: the diode point, the first direction and the mirror-image strategy
+        v = env()
+        m = dr.maximum(dr.gather(mi.UInt32, mi.UInt32(t["m"].astype(np.uint32)), task), 1)
+        h = j >> 1
+        row = h // m
+        col = ((h - row * m) << 1) + (row & 1)
+        r = rand(v, 0, 2)
+        inv = dr.gather(mi.Float, mi.Float((0.5 / t["m"]).astype(np.float32)), task)
+        fx = (mi.Float(col) + r[0] + r[1] - 1.0) * inv
+        fy = (mi.Float(row) + r[0] - r[1]) * inv
+        fx = fx - dr.floor(fx) - 0.5
+        fy = fy - dr.floor(fy) - 0.5
+        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
+        o = v["pos"] + fx * self._gather3(self._v3(t["U"]), task) + fy * self._gather3(self._v3(t["V"]), task)
+        loc = mi.warp.square_to_cosine_hemisphere(mi.Point2f(r[2], r[3]))
+        d = dr.normalize(loc.x * fr[0] + loc.y * fr[1] + loc.z * fr[2])
+        acc = mi.Float(0.0)
         if planes is not None:
-            # Sun seen in a smooth mirror-like face (a delta lobe: no next-event estimate reaches it, and a
+            # The Sun seen in a smooth mirror-like face (a delta lobe: no next-event estimate reaches it, and a
             # cosine-drawn direction meets the 0.5 deg image with probability ~1e-5): draw a plane
             # orientation, then a direction uniform over the Sun's mirror image in it, from the diode.
             P = len(planes)
-            images = [s - 2.0 * dr.dot(s, mi.Vector3f(*map(float, pl))) * mi.Vector3f(*map(float, pl))
-                      for pl in planes]
-
-            def p_spec(dd):
-                """Density (1/sr) of the mirror-image strategy for diode directions dd."""
-                cnt = mi.Float(0.0)
-                for im in images:
-                    cnt += dr.select(in_disc(dd, im), 1.0, 0.0)
-                return cnt * (p_sun / P)
-
-            qs = 4 + 8 * D
-            pick = dr.minimum(mi.UInt32(r[qs] * P), P - 1)
-            img = images[0]
-            for i in range(1, P):
-                img = dr.select(pick == i, images[i], img)
-            dm = disc_dir(img, r[qs + 1], r[qs + 2])
-            cos_m = dr.dot(n_d, dm)
+            rs = rand(v, 2 + 4 * D, 3)
+            pick = dr.minimum(mi.UInt32(rs[0] * P), P - 1)
+            img = None
+            for i, pl in enumerate(planes):
+                m_ = mi.Vector3f(*map(float, pl))
+                im = v["s"] - 2.0 * dr.dot(v["s"], m_) * m_
+                img = im if img is None else dr.select(pick == i, im, img)
+            dm = disc_dir(img, rs[1], rs[2])
+            cos_m = dr.dot(fr[2], dm)
             on = cos_m > 0
             si_m = scene.ray_intersect(mi.Ray3f(o, dm), on)
             on &= si_m.is_valid()
-            bs_m, w_m = si_m.bsdf().sample(ctx, si_m, r[qs + 3], mi.Point2f(r[qs + 4], r[qs + 5]), on)
+            bs_m, w_m = si_m.bsdf().sample(ctx, si_m, rs[3], mi.Point2f(rs[4], rs[5]), on)
             dn_m = si_m.to_world(bs_m.wo)
-            on &= mi.has_flag(bs_m.sampled_type, mi.BSDFFlags.Delta) & in_disc(dn_m, s)
-            on &= w_m[0] > 0
+            on &= mi.has_flag(bs_m.sampled_type, mi.BSDFFlags.Delta) & in_disc(dn_m, v["s"]) & (w_m[0] > 0)
             on &= ~scene.ray_test(mi.Ray3f(spawn(si_m, dn_m), dn_m), on)
             if has_earth:
-                on &= ~earth_blocks(c0 - (si_m.p - pos), dn_m)
-            ps = p_spec(dm)
-            pb = cos_m * (1.0 / np.pi)
-            acc_spec = dr.select(on, w_m[0] * L_sun * cos_m / ps * power(ps, pb), 0.0)
-        else:
-            acc_spec = mi.Float(0.0)
+                on &= ~earth_blocks(v["c0"] - (si_m.p - v["pos"]), dn_m)
+            ps = p_spec(v, dm)
+            # this estimates irradiance directly; the path's sum below is multiplied by pi at the end
+            acc = dr.select(on, w_m[0] * v["L_sun"] * cos_m / ps * power(ps, cos_m * (1.0 / np.pi)), 0.0) / np.pi
+        st = dict(o=o, d=d, thr=mi.Float(1.0), acc=acc, active=dr.full(mi.Bool, True, dr.width(task)),
+                  pdf=mi.Float(0.0), delta=dr.full(mi.Bool, False, dr.width(task)), p=mi.Point3f(o),
+                  cos0=dr.dot(fr[2], d), d0=d)
+        dr.eval(st)
 
-        ray = mi.Ray3f(o, d)
-        si = scene.ray_intersect(ray, dr.full(mi.Bool, True, dr.width(task)))
-        active = si.is_valid()
-        thr = mi.Float(1.0)
-        acc = mi.Float(0.0)
-        for depth in range(D):
-            q = 4 + 8 * depth
-            bsdf = si.bsdf(ray)
-            p = si.p
-            c = (c0 - (p - pos)) if has_earth else None
+        # ---- launches 1..D (+1): a vertex each; the escape of the previous vertex's sampled direction first
+        for depth in range(D + 1):
+            v = env()
+            dv = dr.opaque(mi.UInt32, depth)
+            active, thr, acc = st["active"], st["thr"], st["acc"]
+            si = scene.ray_intersect(mi.Ray3f(st["o"], st["d"]), active)
+            hit = si.is_valid()
+            if depth > 0:
+                # ... it left the spacecraft: the Sun's disc or the Earth, weighted against next-event estimates
+                out = active & ~hit
+                c = (v["c0"] - (st["p"] - v["pos"])) if has_earth else None
+                in_sun = out & in_disc(st["d"], v["s"])
+                if has_earth:
+                    in_sun &= ~earth_blocks(c, st["d"])
+                w_delta = mi.Float(1.0)
+                if planes is not None:          # the mirror-image strategy also draws diode -> mirror -> Sun
+                    w_delta = dr.select(dv == 1, power(st["cos0"] * (1.0 / np.pi), p_spec(v, st["d0"])), 1.0)
+                acc += dr.select(in_sun, thr * v["L_sun"] * dr.select(st["delta"], w_delta,
+                                                                      power(st["pdf"], mi.Float(p_sun))), 0.0)
+                if do_albedo:
+                    hit_e, cos_sun, rho = self._earth_along(st["d"], c, v["s_e"], v["rot"])
+                    ok = out & hit_e & (cos_sun > 0)
+                    L_e = rho * v["E_e"] * cos_sun * (1.0 / np.pi)
+                    acc += dr.select(ok, thr * L_e * dr.select(st["delta"], 1.0, power(st["pdf"], v["p_earth"])), 0.0)
+            if depth == D:
+                st["acc"] = acc
+                break
+            active &= hit
+            c = (v["c0"] - (si.p - v["pos"])) if has_earth else None
+            bsdf = si.bsdf()
+            r = rand(v, 2 + 4 * depth, 4)
             # (a) the Sun: a point on the disc
-            omc = r[q] * omc_max
-            sin_t = dr.sqrt(dr.maximum(omc * (2.0 - omc), 0.0))
-            phi = r[q + 1] * (2.0 * np.pi)
-            b1, b2 = mi.coordinate_system(s)
-            ds = dr.normalize(s * (1.0 - omc) + sin_t * (dr.cos(phi) * b1 + dr.sin(phi) * b2))
+            ds = disc_dir(v["s"], r[0], r[1])
             f, pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds), active)
             ok = active & (f[0] > 0)
             ok &= ~scene.ray_test(mi.Ray3f(spawn(si, ds), ds), ok)
             if has_earth:
                 ok &= ~earth_blocks(c, ds)
-            acc += dr.select(ok, thr * f[0] * L_sun / p_sun * power(mi.Float(p_sun), pdf), 0.0)
+            acc += dr.select(ok, thr * f[0] * v["L_sun"] / p_sun * power(mi.Float(p_sun), pdf), 0.0)
             # (b) the Earth: a direction uniform in its cap
             if do_albedo:
-                de = self._cap_direction(w_, e1, e2, xmax, r[q + 2], r[q + 3] * (2.0 * np.pi))
-                hit, cos_sun, rho = self._earth_along(de, c, s_e, rot)
+                de = self._cap_direction(v["w"], v["e1"], v["e2"], v["xmax"], r[2], r[3] * (2.0 * np.pi))
+                hit_e, cos_sun, rho = self._earth_along(de, c, v["s_e"], v["rot"])
                 f, pdf = bsdf.eval_pdf(ctx, si, si.to_local(de), active)
-                ok = active & hit & (cos_sun > 0) & (f[0] > 0)
+                ok = active & hit_e & (cos_sun > 0) & (f[0] > 0)
                 ok &= ~scene.ray_test(mi.Ray3f(spawn(si, de), de), ok)
-                L_e = rho * E_e * cos_sun * (1.0 / np.pi)
-                acc += dr.select(ok, thr * f[0] * L_e / p_earth * power(p_earth, pdf), 0.0)
-            # continue by BSDF sampling
-            bs, wgt = bsdf.sample(ctx, si, r[q + 4], mi.Point2f(r[q + 5], r[q + 6]), active)
+                L_e = rho * v["E_e"] * cos_sun * (1.0 / np.pi)
+                acc += dr.select(ok, thr * f[0] * L_e / v["p_earth"] * power(v["p_earth"], pdf), 0.0)
+            # continue by BSDF sampling; Russian roulette from the fourth vertex on
+            bs, wgt = bsdf.sample(ctx, si, r[4], mi.Point2f(r[5], r[6]), active)
             dn = si.to_world(bs.wo)
-            delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
             thr = dr.select(active, thr * wgt[0], 0.0)
-            active &= thr > 0
-            ray = mi.Ray3f(spawn(si, dn), dn)
-            si = scene.ray_intersect(ray, active)
-            out = active & ~si.is_valid()
-            # ... and leaves: the Sun's disc or the Earth, weighted against the next-event estimates
-            in_sun = out & in_disc(dn, s)
-            if has_earth:
-                in_sun &= ~earth_blocks(c, dn)
-            w_delta = mi.Float(1.0)
-            if depth == 0 and planes is not None:   # the mirror-image strategy also draws this path
-                pb0 = dr.dot(n_d, d) * (1.0 / np.pi)
-                w_delta = power(pb0, p_spec(d))
-            acc += dr.select(in_sun, thr * L_sun * dr.select(delta, w_delta, power(bs.pdf, mi.Float(p_sun))), 0.0)
-            if do_albedo:
-                hit, cos_sun, rho = self._earth_along(dn, c, s_e, rot)
-                ok = out & hit & (cos_sun > 0)
-                L_e = rho * E_e * cos_sun * (1.0 / np.pi)
-                acc += dr.select(ok, thr * L_e * dr.select(delta, 1.0, power(bs.pdf, p_earth)), 0.0)
-            active &= si.is_valid()
-            if depth + 1 >= _RR_DEPTH and depth + 1 < D:
-                keep = dr.minimum(thr, 0.95)
-                survive = r[q + 7] < keep
-                thr = dr.select(survive, thr / dr.maximum(keep, 1e-12), 0.0)
-                active &= survive
+            rr = active & (dv + 1 >= _RR_DEPTH)
+            keep = dr.minimum(thr, 0.95)
+            survive = ~rr | (r[7] < keep)
+            thr = dr.select(rr, dr.select(survive, thr / dr.maximum(keep, 1e-12), 0.0), thr)
+            active &= survive & (thr > 0)
+            st.update(o=spawn(si, dn), d=dn, thr=thr, acc=acc, active=active, pdf=bs.pdf,
+                      delta=mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta), p=si.p)
+            dr.eval(st)
+            if not dr.any(st["active"]):
+                break
         # irradiance = int L cos dOmega = pi E[L] for directions drawn with density cos / pi
-        return acc * np.pi + acc_spec
+        return st["acc"] * np.pi
 
     # -- the Earth seen along a direction: shared by the albedo kernel and its proposal
     def _earth_along(self, d, c, s, rot):
