@@ -596,8 +596,12 @@ class Renderer:
     # -- reflected kernel: paths from the diode off the spacecraft's BSDFs (module docstring)
     def _reflected_kernel(self, t, task, j):
         """Return the per-lane ``reflected`` irradiance (W/m^2) of tasks ``t``: a wavefront, one launch per
-        path vertex, whose code does not depend on the depth (it is compiled once and reused)."""
+        path vertex, whose code does not depend on the depth (it is compiled once and reused); after each
+        launch the paths still in flight are compacted (most leave the spacecraft at once)."""
         dr, mi = self._dr, self._mi
+        n_lanes = dr.width(task)
+        total = dr.zeros(mi.Float, n_lanes)
+        lane = dr.arange(mi.UInt32, n_lanes)
         scene = self._pt
         D = self.max_depth
         n_pairs = 2 + 4 * D + 3                       # TEA calls per lane (2 floats each)
@@ -739,7 +743,7 @@ class Renderer:
                     L_e = rho * v["E_e"] * cos_sun * (1.0 / np.pi)
                     acc += dr.select(ok, thr * L_e * dr.select(st["delta"], 1.0, power(st["pdf"], v["p_earth"])), 0.0)
             if depth == D:
-                st["acc"] = acc
+                dr.scatter_add(total, acc, lane)
                 break
             active &= hit
             c = (v["c0"] - (si.p - v["pos"])) if has_earth else None
@@ -774,10 +778,22 @@ class Renderer:
             st.update(o=spawn(si, dn), d=dn, thr=thr, acc=acc, active=active, pdf=bs.pdf,
                       delta=mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta), p=si.p)
             dr.eval(st)
-            if not dr.any(st["active"]):
+            # bank what the paths gathered at this vertex, keep the live ones
+            dr.scatter_add(total, st["acc"], lane)
+            keep_idx = dr.compress(active)
+            if dr.width(keep_idx) == 0:
                 break
+            st = {k: dr.gather(type(x), x, keep_idx) for k, x in st.items()}
+            lane, task, j = (dr.gather(mi.UInt32, x, keep_idx) for x in (lane, task, j))
+            if dr.width(keep_idx) < 2:   # a 1-element array would be baked into the kernel as a literal
+                pad = mi.UInt32([0, 0])
+                st = {k: dr.gather(type(x), x, pad) for k, x in st.items()}
+                st["active"] = mi.Bool([True, False])
+                lane, task, j = (dr.gather(mi.UInt32, x, pad) for x in (lane, task, j))
+            st["acc"] = dr.zeros(mi.Float, dr.width(lane))
+            dr.eval(st, lane, task, j)
         # irradiance = int L cos dOmega = pi E[L] for directions drawn with density cos / pi
-        return st["acc"] * np.pi
+        return total * np.pi
 
     # -- the Earth seen along a direction: shared by the albedo kernel and its proposal
     def _earth_along(self, d, c, s, rot):
