@@ -287,3 +287,30 @@ def test_integrating_sphere(rho, depth, oracle_rho, oracle_depth, agrees):
     assert (abs(res.reflected_w_m2[0, 0] - expected) < Z_MAX * res.reflected_se_w_m2[0, 0] + 3e-4 * expected) == agrees, \
         (res.reflected_w_m2, res.reflected_se_w_m2, expected, z)
     assert res.direct_w_m2[0, 0] == 0.0
+
+
+# ------------------------------------------------------------------------------------------ run file
+def test_run_file_carries_reflected_unchecked(tmp_path):
+    import subprocess
+    import sys
+    import xarray as xr
+    (tmp_path / "alu.toml").write_text('[layout]\npattern = "thesis14"\ntilt_deg = 20\nfov_deg = 70\n'
+                                       '[body]\nmaterial = "aluminium"\n[mount]\nmaterial = "aluminium"\n')
+    tiny = ["--start", "2016-07-02T00:45:00Z", "--duration", "4", "--samples", "256", "256"]
+    for cfg, out in (("alu.toml", "alu.nc"), ("tilt20_fov70", "black.nc")):
+        r = subprocess.run([sys.executable, "-m", "simcore.cli", "run", "--config", cfg, *tiny, "-o", out],
+                           capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+    alu, black = xr.load_dataset(tmp_path / "alu.nc"), xr.load_dataset(tmp_path / "black.nc")
+    for ds in (alu, black):
+        assert list(ds["component"].values) == ["direct", "albedo", "reflected"]
+        assert np.all(ds["analytic"].sel(component="reflected").values == 0)      # black analytic surfaces
+        assert np.all(np.isnan(ds["analytic_reference"].sel(component="reflected").values))
+    assert np.all(black["irradiance"].sel(component="reflected").values == 0)
+    assert np.all(black["samples"].sel(component="reflected").values == 0)
+    refl = alu["irradiance"].sel(component="reflected").values
+    assert refl.max() > 0 and np.all(refl >= 0)
+    v = subprocess.run([sys.executable, "-m", "simcore.cli", "validate", "alu.nc"], capture_output=True, text=True,
+                       timeout=600, cwd=tmp_path)
+    assert v.returncode == 0, v.stdout + v.stderr
+    assert f"reflected: {int(np.count_nonzero(refl > 0))} diode-epochs" in v.stdout and "not checked" in v.stdout
