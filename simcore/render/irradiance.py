@@ -105,6 +105,7 @@ _REFLECTED_SAMPLES0 = 256
 # (Mitsuba's own spawn_ray offsets by ~1e-4 of the coordinates plus 1e-4 units: 0.1 mm in metres).
 _SPAWN_EPS_M = 2e-6
 _RR_DEPTH = 3             # Russian roulette from the fourth path vertex on
+_REFLECTED_LANES = 1 << 20  # reflected paths gathered over epochs before a wavefront is launched
 _MAX_MIRROR_PLANES = 32   # orientations of smooth-specular faces sampled toward the Sun's mirror image
 # Rounds of the TEA hash behind every random number. Mitsuba's default, 4, is meant for seeding: with it
 # the two samples of a stratum (consecutive lanes) come out correlated and the pair estimate of the
@@ -1121,6 +1122,7 @@ class Renderer:
         out.update(ddof=np.full((N, K), np.inf), adof=np.full((N, K), np.inf), rdof=np.full((N, K), np.inf))
         n_ref = np.zeros((N, K), dtype=np.int64)
         do_reflected = bool(reflected) and self._pt is not None
+        pending = []
         n_dir = np.zeros((N, K), dtype=np.int64)
         n_alb = np.zeros((N, K), dtype=np.int64)
         E = self.e_sun_w_m2 * scale                                  # (N,)
@@ -1174,10 +1176,14 @@ class Renderer:
                     lam = np.arccos(np.clip(R / dist, -1, 1))
                     lit = np.einsum("ti,ti->t", -c / dist[:, None], sun_e[ep]) > np.cos(np.minimum(np.pi / 2 + lam, np.pi))
                     act &= sunny | (do_albedo & lit)
-                e_, k_ = ep[act], dk[act]
-                if len(e_):
-                    self._reflected_round(e_, k_, g_ep[act], sun, sun_e, earth if do_albedo else None, rot,
-                                          earth, E, E_e, seed, 4 * mr * mr, out, n_ref)
+                pending.append((ep[act], dk[act], g_ep[act]))
+                # the wavefront's launches cost ~10 ms each to trace whatever their width: gather many epochs
+                if sum(len(p[0]) for p in pending) * 4 * mr * mr >= _REFLECTED_LANES or eps[-1] == N - 1:
+                    e_, k_, gg = (np.concatenate(x) for x in zip(*pending))
+                    pending = []
+                    if len(e_):
+                        self._reflected_round(e_, k_, gg, sun, sun_e, earth if do_albedo else None, rot,
+                                              earth, E, E_e, seed, 4 * mr * mr, out, n_ref)
             if progress is not None:
                 progress(len(eps))
         nan = ~valid
