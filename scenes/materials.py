@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import copy
 
+from simcore import _llvm
 from simcore.errors import InvalidInputError
 
 DEFAULT = "black"
@@ -102,9 +103,23 @@ def check_material(spec, where="material"):
             raise MaterialError(f"{where}: a material table needs type = one of Mitsuba's BSDFs "
                                 f"({', '.join(BSDF_TYPES)}), got {kind!r}; or use a name: "
                                 f"{', '.join(material_names())}")
+        _load_check(spec, where)
         return spec
     raise MaterialError(f"{where}: a material is a name ({', '.join(material_names())}) or a Mitsuba BSDF "
                         f"table, got {spec!r}")
+
+
+def _load_check(spec, where):
+    """Raise MaterialError when Mitsuba cannot build the BSDF dict ``spec`` (a wrong parameter name or
+    value), so that a run fails on its configuration before it writes anything."""
+    mi = _llvm.import_mitsuba()
+    prev = mi.variant()
+    mi.set_variant(prev or "scalar_rgb")     # any variant parses the dict; keep the caller's when set
+    try:
+        mi.load_dict(bsdf_dict(spec))
+    except Exception as exc:                 # Mitsuba raises RuntimeError/TypeError/ValueError with its reason
+        reason = " ".join(str(exc).split())
+        raise MaterialError(f"{where}: Mitsuba cannot build the material {spec!r}: {reason[:300]}") from None
 
 
 def is_black(spec):
@@ -115,7 +130,8 @@ def is_black(spec):
 def bsdf_dict(spec):
     """Return the Mitsuba BSDF dictionary (a fresh copy) of a material name or dict, two-sided where
     Mitsuba's plugin is single-sided and reflective."""
-    check_material(spec)
+    if not isinstance(spec, dict):
+        check_material(spec)
     d = copy.deepcopy(MATERIALS[spec] if isinstance(spec, str) else spec)
     if d["type"] in ("twosided", "dielectric", "thindielectric", "roughdielectric", "null", "mask"):
         return d

@@ -129,3 +129,14 @@ def test_unknown_material_on_the_command_line(tmp_path):
     assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
     assert "unknown material 'shiny_foil'" in lines[0] and "black_paint" in lines[0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
+
+
+def test_expert_table_mitsuba_cannot_build_is_a_config_error(tmp_path):
+    (tmp_path / "bad.toml").write_text('[layout]\npattern = "faces6"\ntilt_deg = 0\nfov_deg = 90\n'
+                                       '[body]\nmaterial = {type = "roughconductor", alpha = "rough"}\n')
+    r = subprocess.run([sys.executable, "-m", "simcore.cli", "run", "--config", "bad.toml", "--out", "x.nc"],
+                       capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and 'Mitsuba cannot build the material' in lines[0] and '"alpha"' in lines[0], r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
