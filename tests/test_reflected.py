@@ -123,7 +123,7 @@ def _plate_case(rho):
     v = [[-HA, -HB, H], [HA, -HB, H], [HA, HB, H], [-HA, HB, H]]
     mat = {"type": "diffuse", "reflectance": {"type": "uniform", "value": rho}}
     rend = Renderer(_diode(0.001), _quad(v, mat), e_sun_w_m2=E)
-    return rend.render(SUN_BELOW[None], seed=5, reflected_samples=16384)
+    return rend.render(SUN_BELOW[None], seed=5 + int(round(100 * rho)), reflected_samples=16384)   # independent per rho
 
 
 def _plate_oracle(rho):
