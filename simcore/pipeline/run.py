@@ -239,7 +239,7 @@ class PreparedRun:
         pick = np.flatnonzero(plain_check_epochs(o.seed, len(self.epochs))[sl])
         if len(pick):
             sub = self.renderer.render(*(a[pick] for a in args), seed=o.seed, epoch_index=start + pick,
-                                       albedo=False, hint=False,
+                                       albedo=False, hint=False, reflected=False,
                                        direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
             plain[pick] = np.stack([sub.direct_w_m2, sub.direct_se_w_m2, sub.direct_dof], axis=-1)
         native = self.analytic(sl, self.map)

@@ -1131,7 +1131,8 @@ class Renderer:
         analytic aperture model, for the check. ``batch_epochs``: epochs per wavefront (results do not depend on it).
         ``progress``: optional callable, called with the number of epochs done after each batch.
         ``reflected_samples`` (4 m^2) paths per diode-epoch for the ``reflected`` component (only when some
-        part is not 'black'; ``reflected=False`` skips it: zeros).
+        part is not 'black'; ``reflected=False`` skips it: zeros; with ``albedo=False`` or no Earth it holds the
+        reflected sunlight only).
 
         Per-epoch problems (non-finite inputs) give NaN rows and ``valid`` False; exact zeros
         (Sun behind the diode, full eclipse, no sunlit Earth in the diode's half-space) cost no
