@@ -297,7 +297,7 @@ def render_passes(scene, names, kinds, spp, seed=0):
     w, h = (int(v) for v in sensor.film().size())
     radiance = np.array(mi.render(scene, seed=seed, spp=int(spp)))[..., 0]
     jj, ii = np.meshgrid(np.arange(w), np.arange(h))
-    pos = mi.Point2f(((jj.ravel() + 0.5) / w).astype(np.float32), ((ii.ravel() + 0.5) / h).astype(np.float32))
+    pos = mi.Point2f(_llvm.host_array(mi.Float, (jj + 0.5) / w), _llvm.host_array(mi.Float, (ii + 0.5) / h))
     rays, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
     si = scene.ray_intersect(rays)
     hit = np.array(si.is_valid())

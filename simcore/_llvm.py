@@ -6,11 +6,15 @@ fminimum"), so relying on whatever the loader finds crashes. We look, in
 order, at: ``$DRJIT_LIBLLVM_PATH`` if the user set it; the library that the
 ``karellen-llvm-core`` wheel (a dependency) installs under ``sys.prefix``;
 system libraries of version >= 16, newest first.
+
+Every numpy array handed to Dr.Jit goes through :func:`host_array` (see the note there).
 """
 import glob
 import os
 import re
 import sys
+
+import numpy as np
 
 MIN_VERSION = 16
 ENV = "DRJIT_LIBLLVM_PATH"
@@ -98,3 +102,28 @@ def import_mitsuba():
     configure()
     import mitsuba
     return mitsuba
+
+
+# Dr.Jit (1.5) wraps a numpy array without copying it, and its CPU kernels read lane-wise inputs in whole SIMD
+# packets, the last one past the array's end. From a buffer that is not 64-byte aligned those are unaligned
+# loads, and where the buffer ends just before an unmapped page the last one crosses into it: SIGSEGV (seen as
+# rare crashes of whole test runs; reproduced in tests/test_llvm.py). Every numpy array handed to Dr.Jit goes
+# through :func:`host_array`, whose copy starts on a packet boundary and has slack after its end.
+_PACKET_BYTES = 64
+_NUMPY_TYPES = {"Float32": "float32", "Float64": "float64", "UInt32": "uint32", "Int32": "int32",
+                "UInt64": "uint64", "Int64": "int64", "Bool": "bool"}
+
+
+def host_array(cls, values):
+    """Return the Dr.Jit array type ``cls`` (e.g. ``mi.Float``, ``drjit.llvm.UInt32``) holding a copy of the
+    flattened ``values`` (converted to the type's dtype) in memory Dr.Jit's CPU kernels can read safely:
+    64-byte aligned, with two packets of slack after its end (see the note above)."""
+    dr = import_drjit()
+    dtype = np.dtype(_NUMPY_TYPES[dr.type_v(cls).name])
+    a = np.asarray(values, dtype=dtype).reshape(-1)
+    nbytes = a.size * dtype.itemsize
+    raw = np.zeros(nbytes + 3 * _PACKET_BYTES, np.uint8)
+    start = -raw.ctypes.data % _PACKET_BYTES
+    out = raw[start:start + nbytes].view(dtype)
+    out[:] = a
+    return cls(out)

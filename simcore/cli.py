@@ -201,6 +201,37 @@ def cmd_coverage(args):
     return 0
 
 
+def cmd_response(args):
+    """The traced angular response of a configuration's diodes, beside cosine, eq. 4.15 and a fitted Kelly curve."""
+    from pathlib import Path
+    from simcore.errors import InvalidInputError
+    from simcore.studies.response import format_table, traced_response
+    if args.plot is not None:
+        if Path(args.plot).suffix.lower() not in (".png", ".pdf"):
+            raise InvalidInputError(f"--plot {args.plot}: give a .png or .pdf file name")
+        _output_folder(str(Path(args.plot).parent), "--plot")
+    resp = traced_response(args.config, diodes=args.diode, plane=args.plane, step_deg=args.step,
+                           samples=args.samples, seed=args.seed, variant=args.variant, map_step_deg=args.map_step)
+    if args.plot is not None:
+        from simcore.plots import plot_angular_response, plot_response_hemisphere
+        base = Path(args.plot)
+        for r in resp:
+            one = base if len(resp) == 1 else base.with_name(f"{base.stem}_d{r.index}{base.suffix}")
+            plot_angular_response(r.theta_deg, {"traced": r.response, "cos": r.cosine, "eq. 4.15": r.eq415,
+                                                "well overlap": r.well, f"Kelly {r.kelly_factor:.3g}": r.kelly},
+                                  errors={"traced": r.response_se}, fov_deg=None, cutoff_deg=None,
+                                  title=f"diode {r.index} ({r.name}), Sun in its {r.plane}-n plane", path=one)
+            if r.map_response is not None:
+                plot_response_hemisphere(r.map_theta_deg, r.map_phi_deg, r.map_response,
+                                         title=f"diode {r.index} ({r.name}): traced response",
+                                         path=one.with_name(f"{one.stem}_map{one.suffix}"))
+    if args.json:
+        print(json.dumps({"config": args.config, "diodes": [r.as_dict() for r in resp]}))
+    else:
+        print(format_table(resp))
+    return 0
+
+
 def cmd_view(args):
     """Render the annotated scene picture: the CubeSat at one epoch, over the Earth coloured by its reflectivity."""
     from scenes.config import SatelliteConfig
@@ -592,6 +623,24 @@ def build_parser():
     v.add_argument("--seed", type=int, default=0, help="random seed of the render")
     v.add_argument("--json", action="store_true")
     v.set_defaults(func=cmd_view)
+
+    rs = sub.add_parser("response", help="the traced angular response of each diode (Sun swept from its normal to "
+                                          "90 deg) beside cosine, eq. 4.15 and a fitted Basilisk Kelly curve")
+    rs.add_argument("config", metavar="CONFIG", help="a shipped configuration name or a .toml file")
+    rs.add_argument("--diode", type=int, nargs="+", metavar="K", help="diode indices (default: all)")
+    rs.add_argument("--plane", default="x", choices=("x", "y"),
+                    help="sweep in the diode's u-n (x) or v-n (y) plane (default %(default)s)")
+    rs.add_argument("--step", type=float, default=5.0, metavar="DEG", help="angle step (default %(default)s deg)")
+    rs.add_argument("--samples", type=int, default=4096, metavar="N",
+                    help="direct-Sun samples per diode and angle, 4 m^2 (default %(default)s)")
+    rs.add_argument("--map-step", type=float, default=None, metavar="DEG",
+                    help="also the response over the whole hemisphere on this grid (e.g. 3)")
+    rs.add_argument("--plot", metavar="FILE.png", help="plot per diode (FILE_dK.png for several; _map for the map)")
+    rs.add_argument("--seed", type=int, default=0, help="random seed")
+    rs.add_argument("--variant", default=None, help="Mitsuba variant (default: llvm_ad_mono, CUDA when asked)")
+    rs.add_argument("--json", action="store_true", help='one JSON object: {"diodes": [{"index", "theta_deg", '
+                                                         '"response", "response_se", "reflected", ...}]}')
+    rs.set_defaults(func=cmd_response)
 
     va = sub.add_parser("validate", help="rendered-vs-analytic report of a run file (exit 1 outside tolerance)")
     va.add_argument("run", metavar="RUN.nc")

@@ -697,6 +697,29 @@ def plot_response_map(rmap, path=None):
     return fig
 
 
+def plot_response_hemisphere(theta_deg, phi_deg, response, *, title=None, path=None):
+    """Return a Figure of a response over a diode's hemisphere: polar map, radius = angle from the normal
+    (``theta_deg``, (T,) cell centres), angle = azimuth from the diode's u axis (``phi_deg``, (P,));
+    ``response`` (T, P) relative to normal incidence."""
+    th, ph = _series("theta_deg", theta_deg), _series("phi_deg", phi_deg)
+    r = np.asarray(response, float)
+    if r.shape != (th.size, ph.size):
+        raise ValueError(f"response must have shape ({th.size}, {ph.size}) (theta x phi), got {r.shape}")
+    fig = _figure(6.4, 5.6)
+    ax = fig.add_subplot(projection="polar")
+    dth, dph = (th[1] - th[0]) if th.size > 1 else 90.0, (ph[1] - ph[0]) if ph.size > 1 else 360.0
+    t_edges = np.r_[th - dth / 2, th[-1] + dth / 2]
+    p_edges = np.radians(np.r_[ph - dph / 2, ph[-1] + dph / 2])
+    pc = ax.pcolormesh(p_edges, t_edges, r, cmap="viridis", vmin=0.0, vmax=1.0, shading="flat")
+    ax.set_ylim(0, 90)
+    ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=8)
+    ax.set_xlabel("azimuth from the diode's u axis; radius: angle from its normal", fontsize=9)
+    fig.colorbar(pc, ax=ax, shrink=0.8, label="response relative to normal incidence [-]")
+    if title is not None:
+        ax.set_title(title, fontsize=10)
+    return _finish(fig, path)
+
+
 def plot_sweep(rows, path=None, estimators=("wls", "albedo_sun")):
     """Return a Figure of a sweep table: green fraction, albedo fraction and the estimators' mean sunlit
     errors against the well height, one line per (tilt, FOV); ``path`` writes it."""

@@ -2,7 +2,9 @@
 import numpy as np
 import pytest
 
-from simcore.shapes.aperture import WellAperture, diode_frame
+from scipy.integrate import quad
+
+from simcore.shapes.aperture import CircularWell, WellAperture, diode_frame, disc_rectangle_overlap
 
 
 def _dir(theta_deg, phi_deg=0.0):
@@ -71,3 +73,58 @@ def test_bad_geometry_and_normals():
         WellAperture(-1e-3, 3e-3, 4e-3, 4e-3, 1e-3)
     with pytest.raises(ValueError, match="unit vector"):
         diode_frame([1.0, 1.0, 0.0])
+
+
+# ---- the round well: the disc-rectangle overlap in closed form
+
+def _overlap_by_quadrature(cx, cy, r, x0, x1, y0, y1):
+    """Independent oracle: the chord length of the disc inside [y0, y1], integrated over x by adaptive
+    quadrature (scipy.integrate.quad, breakpoints at the disc's edges)."""
+    def chord(x):
+        s = np.sqrt(max(r * r - (x - cx) ** 2, 0.0))
+        return max(min(y1, cy + s) - max(y0, cy - s), 0.0)
+    lo, hi = max(x0, cx - r), min(x1, cx + r)
+    if hi <= lo:
+        return 0.0
+    pts = [p for p in (cx - np.sqrt(max(r * r - (y - cy) ** 2, 0.0)) for y in (y0, y1)) if lo < p < hi]
+    pts += [p for p in (cx + np.sqrt(max(r * r - (y - cy) ** 2, 0.0)) for y in (y0, y1)) if lo < p < hi]
+    return quad(chord, lo, hi, points=sorted(set(pts)) or None, epsabs=1e-13, epsrel=1e-11, limit=200)[0]
+
+
+def test_disc_rectangle_overlap_exact_cases():
+    r = 1.3
+    assert disc_rectangle_overlap(0.0, 0.0, r, -5, 5, -5, 5) == pytest.approx(np.pi * r * r, rel=1e-14)   # whole disc
+    assert disc_rectangle_overlap(0.0, 0.0, r, 0, 5, -5, 5) == pytest.approx(np.pi * r * r / 2, rel=1e-14)  # half
+    assert disc_rectangle_overlap(0.0, 0.0, r, -5, 0, -5, 0) == pytest.approx(np.pi * r * r / 4, rel=1e-14)  # quadrant
+    assert disc_rectangle_overlap(0.2, -0.1, 10.0, -1, 1, -2, 0.5) == pytest.approx(2 * 2.5, rel=1e-14)   # rect inside
+    assert disc_rectangle_overlap(3.0, 0.0, 1.0, -1, 1, -1, 1) == 0.0                                    # disjoint
+    # circular segment of height r/2 (cut at x = r/2): r^2 (theta - sin theta) / 2 with theta = 2 acos(1/2)
+    th = 2 * np.arccos(0.5)
+    assert disc_rectangle_overlap(0.0, 0.0, r, r / 2, 9, -9, 9) == pytest.approx(r * r * (th - np.sin(th)) / 2,
+                                                                                rel=1e-13)
+
+
+def test_disc_rectangle_overlap_matches_quadrature():
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        cx, cy = rng.uniform(-1.5, 1.5, 2)
+        r = rng.uniform(0.2, 2.0)
+        x0, y0 = rng.uniform(-1.5, 0.5, 2)
+        x1, y1 = x0 + rng.uniform(0.05, 2.0), y0 + rng.uniform(0.05, 2.0)
+        got = float(disc_rectangle_overlap(cx, cy, r, x0, x1, y0, y1))
+        assert got == pytest.approx(_overlap_by_quadrature(cx, cy, r, x0, x1, y0, y1), abs=1e-9), (cx, cy, r, x0, x1, y0, y1)
+
+
+def test_circular_well_lit_fraction():
+    a = 2.65e-3
+    well = CircularWell(a, a, 2.5e-3, 1.5e-3)
+    assert well.lit_fraction([0.0, 0.0, 1.0]) == pytest.approx(1.0)                 # the rim contains the diode
+    assert well.lit_fraction([0.0, 0.0, -1.0]) == 0.0
+    # along u at theta: the rim's circle shifted by h tan(theta); oracle: the quadrature above
+    th = np.radians(40.0)
+    d = [np.sin(th), 0.0, np.cos(th)]
+    want = _overlap_by_quadrature(-1.5e-3 * np.tan(th), 0.0, 2.5e-3, -a / 2, a / 2, -a / 2, a / 2) / a ** 2
+    assert well.lit_fraction(d) == pytest.approx(want, rel=1e-9)
+    assert well.response(d) == pytest.approx(want * np.cos(th), rel=1e-9)
+    with pytest.raises(ValueError, match="must reach the diode's corners"):
+        CircularWell(a, a, 1.5e-3, 1e-3)

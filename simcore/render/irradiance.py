@@ -84,6 +84,7 @@ import numpy as np
 
 from scenes.materials import MaterialError, bsdf_dict, check_material, is_black
 from simcore import _llvm
+from simcore._llvm import host_array
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
 from simcore.environment.maps import named_map
 from simcore.shapes.aperture import lit_rectangle
@@ -346,7 +347,7 @@ class Renderer:
             raise ValueError(f"sun_angular_radius_rad must lie in [0, 0.1) rad, got {a}; "
                              f"use 0 (point Sun) or SUN_ANGULAR_RADIUS_RAD ({SUN_ANGULAR_RADIUS_RAD:.5f})")
         self.sun_angular_radius_rad = a
-        self._refl_dr = mi.Float(refl.astype(np.float32).ravel())
+        self._refl_dr = host_array(mi.Float, refl)
         self._scene = self._build_scene(occluder_mesh)
         if int(max_depth) < 1:
             raise ValueError(f"max_depth must be >= 1 spacecraft vertex, got {max_depth}")
@@ -382,8 +383,8 @@ class Renderer:
                              "satellite in body axes, in metres, centred on the satellite")
         m = mi.Mesh("occluders", len(v), len(f), has_vertex_normals=False, has_vertex_texcoords=False)
         params = mi.traverse(m)
-        params["vertex_positions"] = mi.Float(v.astype(np.float32).ravel())
-        params["faces"] = mi.UInt32(f.astype(np.uint32).ravel())
+        params["vertex_positions"] = host_array(mi.Float, v)
+        params["faces"] = host_array(mi.UInt32, f)
         params.update()
         return mi.load_dict({"type": "scene", "occluders": m})
 
@@ -474,8 +475,8 @@ class Renderer:
     # -- helpers for Dr.Jit
     def _v3(self, arr):
         mi = self._mi
-        a = np.ascontiguousarray(np.asarray(arr, dtype=np.float32).T)
-        return mi.Vector3f(mi.Float(a[0]), mi.Float(a[1]), mi.Float(a[2]))
+        a = np.asarray(arr, dtype=np.float32)
+        return mi.Vector3f(*(host_array(mi.Float, a[:, i]) for i in range(3)))
 
     def _gather3(self, src, idx):
         dr, mi = self._dr, self._mi
@@ -526,7 +527,7 @@ class Renderer:
             sub = {k: (None if v is None else v[sl]) for k, v in t.items()}
             if sl.stop - sl.start < 2:
                 sub = _pad2(sub)
-            out.append(kernel(sub, self._mi.UInt32(task), self._mi.UInt32(j)).numpy())
+            out.append(kernel(sub, host_array(self._mi.UInt32, task), host_array(self._mi.UInt32, j)).numpy())
         return np.concatenate(out)
 
     # -- where the analytic well lets light through (aperture split, see _rounds)
@@ -539,7 +540,7 @@ class Renderer:
         dr, mi = self._dr, self._mi
         fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
-        ax, ay, wx, wy, h = [dr.gather(mi.Float, mi.Float(t["ap"][:, k].astype(np.float32)), task)
+        ax, ay, wx, wy, h = [dr.gather(mi.Float, host_array(mi.Float, t["ap"][:, k]), task)
                              for k in range(5)]          # half diode, half opening, height
         return lit_rectangle(ax, ay, wx, wy, h, du, dv, dn, maximum=dr.maximum, minimum=dr.minimum,
                              where=dr.select)
@@ -551,7 +552,7 @@ class Renderer:
         dr, mi = self._dr, self._mi
         if not self.control_variate:
             return fx, fy, mi.Float(1.0)
-        mode = dr.gather(mi.UInt32, mi.UInt32(t["mode"].astype(np.uint32)), task)
+        mode = dr.gather(mi.UInt32, host_array(mi.UInt32, t["mode"]), task)
         x0, x1, y0, y1, lit = self._well_rect(t, task, d)
         in_a = mode == 1
         gx = dr.select(in_a, x0 + (x1 - x0) * (fx + 0.5), fx)
@@ -567,13 +568,13 @@ class Renderer:
         # the unit torus with k + l even, so that the aperture walls' edges, parallel to the
         # diode's sides, cut many strata obliquely instead of one row of them.
         # (max: lanes past the end of the last SIMD packet gather 0, and x86 traps on x / 0)
-        m = dr.maximum(dr.gather(mi.UInt32, mi.UInt32(t["m"].astype(np.uint32)), task), 1)
+        m = dr.maximum(dr.gather(mi.UInt32, host_array(mi.UInt32, t["m"]), task), 1)
         h = j >> 1
         row = h // m
         col = ((h - row * m) << 1) + (row & 1)
-        key = dr.gather(mi.UInt32, mi.UInt32(t["key"]), task)
+        key = dr.gather(mi.UInt32, host_array(mi.UInt32, t["key"]), task)
         r = self._rand(key, j, 2)
-        inv = dr.gather(mi.Float, mi.Float((0.5 / t["m"]).astype(np.float32)), task)
+        inv = dr.gather(mi.Float, host_array(mi.Float, 0.5 / t["m"]), task)
         fx = (mi.Float(col) + r[0] + r[1] - 1.0) * inv
         fy = (mi.Float(row) + r[0] - r[1]) * inv
         fx = fx - dr.floor(fx) - 0.5
@@ -607,12 +608,12 @@ class Renderer:
         dr, mi = self._dr, self._mi
         B = _N_T * _N_P
         h = j >> 1
-        key = dr.gather(mi.UInt32, mi.UInt32(t["key"]), task)
+        key = dr.gather(mi.UInt32, host_array(mi.UInt32, t["key"]), task)
         r = self._rand(key, j, 3)
-        inv_m = dr.gather(mi.Float, mi.Float((1.0 / t["m"]).astype(np.float32)), task)
+        inv_m = dr.gather(mi.Float, host_array(mi.Float, 1.0 / t["m"]), task)
         u = (mi.Float(h) + r[0]) * inv_m
         # Bin by binary search in the task's inclusive CDF (count of entries <= u).
-        cdf = mi.Float(np.ascontiguousarray(t["cdf"], dtype=np.float32).ravel())
+        cdf = host_array(mi.Float, t["cdf"])
         base = task * B
         lo = dr.zeros(mi.UInt32, dr.width(task))
         step = B // 2
@@ -621,11 +622,11 @@ class Renderer:
             lo = dr.select(probe <= u, lo + step, lo)
             step //= 2
         b = dr.minimum(lo, B - 1)
-        pmf = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(t["pmf"], dtype=np.float32).ravel()), base + b)
+        pmf = dr.gather(mi.Float, host_array(mi.Float, t["pmf"]), base + b)
         bt = b >> int(np.log2(_N_P))
         bp = b & (_N_P - 1)
-        xmax = dr.gather(mi.Float, mi.Float(t["xmax"].astype(np.float32)), task)
-        edges = mi.Float(np.ascontiguousarray(t["tedge"], dtype=np.float32).ravel())
+        xmax = dr.gather(mi.Float, host_array(mi.Float, t["xmax"]), task)
+        edges = host_array(mi.Float, t["tedge"])
         t0 = dr.gather(mi.Float, edges, task * (_N_T + 1) + bt)
         dt = dr.gather(mi.Float, edges, task * (_N_T + 1) + bt + 1) - t0
         g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
@@ -924,19 +925,19 @@ class Renderer:
         p = i - task * n_points
         it = p // (_N_P + 1)                             # bin corners: (N_T + 1) x (N_P + 1)
         ip = p - it * (_N_P + 1)
-        t01 = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(t["tedge"], dtype=np.float32).ravel()),
+        t01 = dr.gather(mi.Float, host_array(mi.Float, t["tedge"]),
                         task * (_N_T + 1) + it)
         phi = mi.Float(ip) * (2.0 * np.pi / _N_P)
         g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
         d = self._cap_direction(g3("w"), g3("e1"), g3("e2"),
-                                dr.gather(mi.Float, mi.Float(t["xmax"].astype(np.float32)), task), t01, phi)
+                                dr.gather(mi.Float, host_array(mi.Float, t["xmax"]), task), t01, phi)
         rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
         hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot)
         lit = self._well_rect(t, task, d)[4]
         dn = dr.dot(g3("n"), d)
         # cos_sun widened by ~half a bin on the ground, so that bins the terminator crosses
         # between their corners keep their weight
-        cos_sun = cos_sun + dr.gather(mi.Float, mi.Float(t["margin"].astype(np.float32)), task)
+        cos_sun = cos_sun + dr.gather(mi.Float, host_array(mi.Float, t["margin"]), task)
         ok = hit & (cos_sun > 0) & (dn > 0)
         f = dr.abs(rho) * cos_sun * dn * lit
         if self._vis is not None:
@@ -945,7 +946,7 @@ class Renderer:
             row = dr.clip(mi.Int32(dr.acos(dr.clip(dn, -1.0, 1.0)) * (_VIS_NT / (0.5 * np.pi))), 0, _VIS_NT - 1)
             col = mi.Int32((dr.atan2(dr.dot(fr[1], d), dr.dot(fr[0], d)) + np.pi) * (_VIS_NP / (2.0 * np.pi)))
             col = dr.clip(col, 0, _VIS_NP - 1)
-            k = mi.Int32(dr.gather(mi.UInt32, mi.UInt32(t["k"].astype(np.uint32)), task))
+            k = mi.Int32(dr.gather(mi.UInt32, host_array(mi.UInt32, t["k"]), task))
             f *= dr.gather(mi.Float, self._vis, mi.UInt32((k * _VIS_NT + row) * _VIS_NP + col))
         return dr.select(ok, f, 0.0).numpy().reshape(T, n_points)
 
@@ -962,7 +963,7 @@ class Renderer:
         grown[:, 1:] = np.maximum(grown[:, 1:], vis[:, :-1])
         grown[:, :-1] = np.maximum(grown[:, :-1], vis[:, 1:])
         grown = np.maximum(grown, np.maximum(np.roll(grown, 1, axis=2), np.roll(grown, -1, axis=2)))
-        return self._mi.Float(grown.astype(np.float32).ravel())
+        return host_array(self._mi.Float, grown)
 
     def direction_grid(self):
         """Return (theta, phi) (_VIS_NT,), (_VIS_NP,) rad: the cell centres of the 1 x 2 deg direction grid
@@ -1452,9 +1453,7 @@ class Renderer:
              + fy[..., None] * base["V"][:, None, None])
         d = np.broadcast_to(dirs[:, :, None], o.shape)
         mi = self._mi
-        o32 = np.ascontiguousarray(o.reshape(-1, 3).T.astype(np.float32))
-        d32 = np.ascontiguousarray(d.reshape(-1, 3).T.astype(np.float32))
-        ray = mi.Ray3f(mi.Point3f(*(mi.Float(x) for x in o32)), mi.Vector3f(*(mi.Float(x) for x in d32)))
+        ray = mi.Ray3f(self._v3(o.reshape(-1, 3)), self._v3(d.reshape(-1, 3)))
         blocked = np.asarray(self._scene.ray_test(ray).numpy(), bool).reshape(T, D, P)
         seen = np.broadcast_to(((lit > 0) & (x1 - x0 > 2 * inset) & (y1 - y0 > 2 * inset))[..., None], blocked.shape)
         some = (blocked & seen).any(axis=(1, 2))

@@ -191,9 +191,9 @@ def _trace_lanes(mi, dr, scene, ap, dirs, rays, seed, lane0, reflective_floor, m
     h = ap.height_m * MM_PER_M
     idx = dr.arange(mi.UInt32, n)
     task = idx // rays
-    dx = dr.gather(mi.Float, mi.Float(dirs[:, 0].astype(np.float32)), task)
-    dy = dr.gather(mi.Float, mi.Float(dirs[:, 1].astype(np.float32)), task)
-    dz = dr.gather(mi.Float, mi.Float(dirs[:, 2].astype(np.float32)), task)
+    dx = dr.gather(mi.Float, _llvm.host_array(mi.Float, dirs[:, 0]), task)
+    dy = dr.gather(mi.Float, _llvm.host_array(mi.Float, dirs[:, 1]), task)
+    dz = dr.gather(mi.Float, _llvm.host_array(mi.Float, dirs[:, 2]), task)
     # one PCG32 stream per global lane index: results do not depend on how directions are batched
     state = (int(seed) * 0x9E3779B97F4A7C15 + 0x853C49E6748FEA9B) % (1 << 64)
     rng = mi.PCG32(size=n, initstate=mi.UInt64(state), initseq=dr.arange(mi.UInt64, n) + mi.UInt64(int(lane0)))

@@ -109,6 +109,83 @@ class WellAperture:
         return self.lit_fraction(d) * np.clip(d[..., 2], 0.0, None)
 
 
+def _disc_quadrant_area(a, b, r):
+    """Return the area of the disc of radius ``r`` centred at the origin with x <= a and y <= b (closed
+    form, arrays broadcast): the integral over x <= a of the chord length below y = b, piecewise in the
+    antiderivative S(x) = (x sqrt(r^2 - x^2) + r^2 asin(x / r)) / 2 of the half chord."""
+    a, b, r = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (a, b, r)))
+
+    def S(x):
+        x = np.clip(x, -r, r)
+        return 0.5 * (x * np.sqrt(np.maximum(r * r - x * x, 0.0)) + r * r * np.arcsin(np.clip(x / r, -1.0, 1.0)))
+
+    hi = np.clip(a, -r, r)                                     # x runs over [-r, hi]
+    c = np.sqrt(np.maximum(r * r - b * b, 0.0))                # |x| <= c: the chord straddles y = b
+    # |x| <= c: the chord's part below b has length b + s(x) (for either sign of b)
+    lo_in, hi_in = -c, np.minimum(c, hi)
+    inner = np.where(hi_in > lo_in, b * (hi_in - lo_in) + S(hi_in) - S(lo_in), 0.0)
+    # |x| > c: the whole chord (2 s(x)) when b >= 0, none of it when b < 0
+    left = 2.0 * (S(np.minimum(hi, -c)) - S(-r))
+    right = np.where(hi > c, 2.0 * (S(hi) - S(c)), 0.0)
+    outer = np.where(b >= 0, left + right, 0.0)
+    return inner + outer
+
+
+def disc_rectangle_overlap(cx, cy, r, x0, x1, y0, y1):
+    """Return the area of the disc of centre (cx, cy) and radius ``r`` > 0 inside the rectangle [x0, x1] x
+    [y0, y1] (closed form, any units, arrays broadcast; 0 for an empty rectangle)."""
+    q = _disc_quadrant_area
+    area = q(x1 - cx, y1 - cy, r) - q(x0 - cx, y1 - cy, r) - q(x1 - cx, y0 - cy, r) + q(x0 - cx, y0 - cy, r)
+    return np.where((np.asarray(x1) > x0) & (np.asarray(y1) > y0), np.maximum(area, 0.0), 0.0)
+
+
+@dataclass(frozen=True)
+class CircularWell:
+    """A round well (a straight cylinder of radius ``radius_m``, ``height_m`` high) over a rectangular diode
+    (metres), centred on it. The cylinder contains the diode, so, as for :class:`WellAperture`, only its rim
+    limits the light: a ray from the diode toward ``d`` leaves through the rim's circle shifted by
+    ``-height * (d_u/d_n, d_v/d_n)``, and the lit fraction is the diode's overlap with that disc
+    (:func:`disc_rectangle_overlap`), exact."""
+
+    diode_x_m: float
+    diode_y_m: float
+    radius_m: float
+    height_m: float
+
+    def __post_init__(self):
+        for name in ("diode_x_m", "diode_y_m", "radius_m"):
+            if not (getattr(self, name) > 0 and np.isfinite(getattr(self, name))):
+                raise ValueError(f"circular well {name} must be a positive length in metres, got {getattr(self, name)}")
+        if not (self.height_m >= 0 and np.isfinite(self.height_m)):
+            raise ValueError(f"circular well height_m must be >= 0 metres, got {self.height_m}")
+        if self.radius_m < 0.5 * np.hypot(self.diode_x_m, self.diode_y_m):
+            raise ValueError(f"a circular well's radius ({self.radius_m} m) must reach the diode's corners "
+                             f"(half diagonal {0.5 * np.hypot(self.diode_x_m, self.diode_y_m):.6g} m): the "
+                             "cylinder must contain the diode")
+
+    @property
+    def diode_area_m2(self):
+        return self.diode_x_m * self.diode_y_m
+
+    def lit_fraction(self, d_diode):
+        """Return the lit fraction of the diode (0..1) for unit directions ``d_diode`` (..., 3) towards the
+        source, in the diode frame (u, v, n); 0 from behind."""
+        d = np.asarray(d_diode, dtype=float)
+        dn = d[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            inv = np.where(dn > 0, 1.0 / np.where(dn > 0, dn, 1.0), 0.0)
+            cx, cy = -self.height_m * d[..., 0] * inv, -self.height_m * d[..., 1] * inv
+        hx, hy = self.diode_x_m / 2, self.diode_y_m / 2
+        area = disc_rectangle_overlap(cx, cy, self.radius_m, -hx, hx, -hy, hy)
+        return np.where(dn > 0, area / self.diode_area_m2, 0.0)
+
+    def response(self, d_diode):
+        """Return the angular response (lit fraction x cos incidence) for directions (..., 3) in the
+        diode frame: irradiance on the diode per unit normal irradiance."""
+        d = np.asarray(d_diode, dtype=float)
+        return self.lit_fraction(d) * np.clip(d[..., 2], 0.0, None)
+
+
 def diode_frame(normal_body):
     """Return the (3, 3) diode frame (rows u, v, n) for a unit normal in the body frame.
 

@@ -147,10 +147,24 @@ def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m)
              for k in range(3)]
     zero = np.zeros(T)
     lower.append((zero, zero, -np.where(front, dn, 1.0), zero))
-    for ai, bi, gi, ci in lower:            # gi <= 0: t >= (ci - ai X - bi Y) / gi
-        for aj, bj, gj, cj in upper:        # gj >= 0: t <= (cj - aj X - bj Y) / gj
-            poly, count = _clip_half_plane(poly, count, ai * gj - aj * gi, bi * gj - bj * gi, ci * gj - cj * gi)
-    shadow = _polygon_area(poly, count)
+    # gi <= 0: t >= (ci - ai X - bi Y) / gi;  gj >= 0: t <= (cj - aj X - bj Y) / gj
+    planes = [(ai * gj - aj * gi, bi * gj - bj * gi, ci * gj - cj * gi)
+              for ai, bi, gi, ci in lower for aj, bj, gj, cj in upper]
+    # Most lit rectangles lie wholly outside the shadow (a half-plane excludes all four corners: nothing to
+    # clip) or wholly inside it (every half-plane holds all four: the whole rectangle is shadowed); only
+    # the others, which a shadow edge crosses, are clipped.
+    holds_all, excludes_all = lit > 0, lit <= 0
+    for a, b, c in planes:     # the largest and smallest of a X + b Y over the rectangle's corners
+        ax0, ax1, by0, by1 = a * x0, a * x1, b * y0, b * y1
+        holds_all &= np.maximum(ax0, ax1) + np.maximum(by0, by1) <= c
+        excludes_all |= np.minimum(ax0, ax1) + np.minimum(by0, by1) > c
+    shadow = np.where(holds_all, lit, 0.0)
+    todo = np.flatnonzero(~holds_all & ~excludes_all)
+    if todo.size:
+        poly, count = poly[todo], count[todo]
+        for a, b, c in planes:
+            poly, count = _clip_half_plane(poly, count, a[todo], b[todo], c[todo])
+        shadow[todo] = _polygon_area(poly, count)
     return np.where(front, np.clip(lit - shadow, 0.0, None) / (4 * ax * ay), 0.0)
 
 

@@ -1,0 +1,74 @@
+"""``sunsim response``: the traced angular response of a configuration's diodes.
+
+Oracles: the cosine for a bare diode with nothing above it; the closed-form overlap of the well minus the
+body box's shadow (simcore.shapes.occlusion.lit_fraction_with_box, exact polygon clipping) for a ramp diode
+whose view the body cuts; Basilisk's response with a known Kelly factor for the fit.
+"""
+import json
+
+import numpy as np
+import pytest
+
+from scenes.config import SatelliteConfig
+from simcore.cli import main
+from simcore.radiometry.analytic import BodyBox
+from simcore.sensor.errors import basilisk_response
+from simcore.shapes.occlusion import lit_fraction_with_box
+from simcore.studies.response import fit_kelly, traced_response
+
+
+def _json(capsys, argv):
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_bare_diode_on_the_top_face_reads_the_cosine(capsys):
+    out = _json(capsys, ["response", "tilt0_fov90", "--diode", "4", "--step", "15", "--samples", "1024", "--json"])
+    (d,) = out["diodes"]
+    assert d["index"] == 4 and d["theta_deg"] == [0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0]
+    np.testing.assert_allclose(d["response"], np.cos(np.radians(d["theta_deg"])), atol=1e-6)
+    assert d["reflected"] == [0.0] * 7                       # black surfaces reflect nothing
+    assert d["kelly_factor"] == 0.0                         # the pure cosine fits best
+    for key in ("response_se", "direct", "cosine", "eq415", "well", "kelly"):
+        assert len(d[key]) == 7
+
+
+def test_ramp_diode_traced_through_the_body_shadow_matches_the_box_model():
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    (r,) = traced_response(cfg, diodes=[3], plane="y", step_deg=2.5, samples=4096)
+    frame = np.asarray(cfg.frames)[3]
+    th = np.radians(r.theta_deg)
+    d = np.stack([np.zeros_like(th), np.sin(th), np.cos(th)], 1)
+    box = BodyBox.from_config(cfg)
+    ref = np.array([lit_fraction_with_box(cfg.diodes[3].aperture, frame, cfg.positions_m[3], x @ frame, box.half_m)
+                    * x[2] for x in d])
+    # the body hides part of the well's light somewhere in this sweep (else the test would not test it)
+    assert np.max(r.well - ref) > 0.05
+    # renderer's per-angle error: |traced - exact| within 4 standard errors (+1e-6 where both are exact);
+    # over 37 angles a false alarm needs a 4-sigma draw (~2e-3 in all)
+    assert np.all(np.abs(r.response - ref) <= 4 * r.response_se + 1e-6), np.c_[r.theta_deg, r.response, ref]
+
+
+@pytest.mark.parametrize("kappa", [0.02, 0.1])
+def test_kelly_fit_recovers_a_known_factor(kappa):
+    theta = np.arange(0.0, 90.1, 2.5)
+    resp = basilisk_response(np.cos(np.radians(theta)), np.radians(80.0) - 1e-9, kappa)
+    k, fov, rms = fit_kelly(theta, resp)
+    assert k == pytest.approx(kappa, rel=1e-3) and fov == 80.0 and rms < 1e-6
+    # and a wrong curve is not fitted exactly: the cosine itself has no Kelly factor
+    assert fit_kelly(theta, np.cos(np.radians(theta)))[0] == 0.0
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--diode", "14"], "--diode 14 does not exist"),
+    (["--step", "0"], "--step must lie in (0, 45]"),
+    (["--samples", "1000"], "--samples must be 4 m^2"),
+    (["--map-step", "0.1"], "--map-step must lie in"),
+    (["--plot", "out.txt"], "give a .png or .pdf"),
+])
+def test_bad_input_is_one_line_and_nothing_is_written(capsys, tmp_path, monkeypatch, argv, words):
+    monkeypatch.chdir(tmp_path)
+    assert main(["response", "tilt20_fov70", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert words in err and len(err.splitlines()) == 1, err
+    assert list(tmp_path.iterdir()) == []
