@@ -29,7 +29,8 @@ def _albedo_normal(spec, n=200_000, seed=1):
     si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
     rng = np.random.default_rng(seed)
     u = rng.random((3, n)).astype(np.float32)
-    _, w = bsdf.sample(mi.BSDFContext(), si, mi.Float(u[0]), mi.Point2f(mi.Float(u[1]), mi.Float(u[2])))
+    f = [_llvm.host_array(mi.Float, x) for x in u]     # docs/conventions.md: numpy reaches Dr.Jit only so
+    _, w = bsdf.sample(mi.BSDFContext(), si, f[0], mi.Point2f(f[1], f[2]))
     w = np.asarray(w.numpy(), float).ravel()
     return w.mean(), w.std() / np.sqrt(n)
 

@@ -422,8 +422,8 @@ class Renderer:
                 normals.append(fn[a:b])
             m = mi.Mesh(f"part{i}", len(used), b - a, props=props)
             params = mi.traverse(m)
-            params["vertex_positions"] = mi.Float(v[used].astype(np.float32).ravel())
-            params["faces"] = mi.UInt32(inv.reshape(-1).astype(np.uint32))
+            params["vertex_positions"] = host_array(mi.Float, v[used])
+            params["faces"] = host_array(mi.UInt32, inv)
             params.update()
             shapes[f"part{i}"] = m
         self._mirror_normals = _plane_normals(normals)
@@ -463,7 +463,7 @@ class Renderer:
                 beta[k] = _HIT_COSINE
         cdf = np.cumsum(pmf, axis=1)
         cdf[:, -1] = np.where(cdf[:, -1] > 0, 1.0, 0.0)
-        return dict(pmf=mi.Float(pmf.astype(np.float32).ravel()), cdf=mi.Float(cdf.astype(np.float32).ravel()),
+        return dict(pmf=host_array(mi.Float, pmf), cdf=host_array(mi.Float, cdf),
                     beta=beta, omega=omega.ravel(), th_e=th_e)
 
     def _diode_arrays(self):
@@ -663,16 +663,16 @@ class Renderer:
         def env():
             """Per-lane task data (gathered anew in each launch)."""
             g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
-            v = dict(key=dr.gather(mi.UInt32, mi.UInt32(t["key"]), task), s=g3("sun"), pos=g3("pos"),
-                     E=dr.gather(mi.Float, mi.Float(t["E"].astype(np.float32)), task))
+            v = dict(key=dr.gather(mi.UInt32, host_array(mi.UInt32, t["key"]), task), s=g3("sun"), pos=g3("pos"),
+                     E=dr.gather(mi.Float, host_array(mi.Float, t["E"]), task))
             # disc radiance: int L cos(d, s) dOmega = E  =>  L = E / (Omega (1 + cos a) / 2)
             v["L_sun"] = v["E"] * dr.opaque(mi.Float, 2.0 * p_sun / (2.0 - omc_max))
             if has_earth:
                 v["c0"] = g3("earth")                 # Earth's centre from the diode's centre
             if do_albedo:
                 v.update(s_e=g3("sun_e"), w=g3("w"), e1=g3("e1"), e2=g3("e2"),
-                         E_e=dr.gather(mi.Float, mi.Float(t["E_e"].astype(np.float32)), task),
-                         xmax=dr.gather(mi.Float, mi.Float(t["xmax"].astype(np.float32)), task),
+                         E_e=dr.gather(mi.Float, host_array(mi.Float, t["E_e"]), task),
+                         xmax=dr.gather(mi.Float, host_array(mi.Float, t["xmax"]), task),
                          rot=[self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)])
                 v["p_earth"] = 1.0 / (2.0 * np.pi * v["xmax"])   # uniform in solid angle over the cap
             return v
@@ -720,12 +720,12 @@ class Renderer:
 
         # ---- launch 0: the diode point, the first direction and the mirror-image strategy
         v = env()
-        m = dr.maximum(dr.gather(mi.UInt32, mi.UInt32(t["m"].astype(np.uint32)), task), 1)
+        m = dr.maximum(dr.gather(mi.UInt32, host_array(mi.UInt32, t["m"]), task), 1)
         h = j >> 1
         row = h // m
         col = ((h - row * m) << 1) + (row & 1)
         r = rand(v, 0, 2)
-        inv = dr.gather(mi.Float, mi.Float((0.5 / t["m"]).astype(np.float32)), task)
+        inv = dr.gather(mi.Float, host_array(mi.Float, 0.5 / t["m"]), task)
         fx = (mi.Float(col) + r[0] + r[1] - 1.0) * inv
         fy = (mi.Float(row) + r[0] - r[1]) * inv
         fx = fx - dr.floor(fx) - 0.5
@@ -735,10 +735,10 @@ class Renderer:
         # first direction: the hit-table proposal mixed with cosine-weighted sampling (_hit_table)
         B = _HIT_NT * _HIT_NP
         hit = self._hit
-        kk = dr.gather(mi.UInt32, mi.UInt32(t["k"].astype(np.uint32)), task)
-        beta = dr.gather(mi.Float, mi.Float(hit["beta"][t["k"]].astype(np.float32)), task)
-        cos_edges = mi.Float(np.cos(hit["th_e"]).astype(np.float32))
-        omega = mi.Float(hit["omega"].astype(np.float32))
+        kk = dr.gather(mi.UInt32, host_array(mi.UInt32, t["k"]), task)
+        beta = dr.gather(mi.Float, host_array(mi.Float, hit["beta"][t["k"]]), task)
+        cos_edges = host_array(mi.Float, np.cos(hit["th_e"]))
+        omega = host_array(mi.Float, hit["omega"])
         rx = rand(v, 5 + 4 * D, 1)
         loc = mi.warp.square_to_cosine_hemisphere(mi.Point2f(r[2], r[3]))
         lo = dr.zeros(mi.UInt32, dr.width(task))
