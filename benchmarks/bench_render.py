@@ -8,7 +8,11 @@ eclipse), Earth turning under it, tumbling at 1.9 deg/s (thesis sec. 4.1) about 
 body axis; TOMS 2005 reflectivity. One orbit at 1 s steps by default: a sample of the
 24 h run whose time it projects.
 
-    .venv/bin/python benchmarks/bench_render.py [--epochs N] [--step-s S] [--threads T]
+    .venv/bin/python benchmarks/bench_render.py [--epochs N] [--step-s S] [--threads T] [--material NAME]
+
+``--material`` (e.g. aluminium, scenes/materials.py) gives the body and the mounts that surface: the
+render then path-traces the ``reflected`` component too (``--reflected-samples`` per diode-epoch), and
+the same epochs are timed again without it, so that its own cost is printed.
 
 Last line: one JSON object.
 """
@@ -59,17 +63,23 @@ def main():
     ap.add_argument("--config", default="tilt20_fov70")
     ap.add_argument("--threads", type=int, default=None)
     ap.add_argument("--variant", default=None)
+    ap.add_argument("--material", default="black", help="surface of the body and mounts (default: black)")
+    ap.add_argument("--reflected-samples", type=int, default=256)
     args = ap.parse_args()
 
+    from dataclasses import replace
     from scenes.config import SatelliteConfig
     from scenes.meshes import build_satellite_mesh
     cfg = SatelliteConfig.load(args.config)
+    if args.material != "black":
+        cfg = replace(cfg, body=replace(cfg.body, material=args.material),
+                      mount=replace(cfg.mount, material=args.material))
     mesh = build_satellite_mesh(cfg)
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     rend = Renderer(DiodeSurfaces.from_config(cfg), mesh, variant=args.variant, threads=args.threads)
     sun, earth, rot = synthetic_orbit(args.epochs, args.step_s)
-    targets = dict(rel_se_direct=0.002, rel_se_albedo=0.01)
+    targets = dict(rel_se_direct=0.002, rel_se_albedo=0.01, reflected_samples=args.reflected_samples)
     rend.render(sun[:64], earth[:64], rot[:64], seed=99, **targets)     # compile the kernels
     warm_s = time.perf_counter() - t0
 
@@ -95,7 +105,20 @@ def main():
           f"albedo {met_a:.4f}; sunlit diode-epochs {lit.mean():.3f}")
     day_s = 86400 * ms / 1e3
     print(f"projected 24 h at 1 s: {day_s / 60:.1f} min (target <= 10 min, stretch <= 3 min)")
-    print(json.dumps(dict(bench="render", config=args.config, variant=res.variant, epochs=n, diodes=k,
+    extra = {}
+    if args.material != "black":
+        t0 = time.perf_counter()
+        rend.render(sun, earth, rot, seed=1, reflected=False, **targets)
+        ms_refl = ms - (time.perf_counter() - t0) / n * 1e3
+        r, se = res.reflected_w_m2, res.reflected_se_w_m2
+        some = r > 0
+        print(f"reflected ({args.material}): {ms_refl:.3f} ms per epoch of the {ms:.3f} "
+              f"({args.reflected_samples} paths per diode-epoch); mean {np.nanmean(r):.2f} W/m^2, "
+              f"max {np.nanmax(r):.1f} W/m^2, median se/value where > 0: {np.nanmedian(se[some] / r[some]):.2f}")
+        extra = dict(material=args.material, reflected_ms_per_epoch=round(ms_refl, 4),
+                     reflected_samples_per_epoch=round(res.reflected_samples.sum() / n),
+                     reflected_mean_w_m2=round(float(np.nanmean(r)), 3))
+    print(json.dumps(dict(bench="render", config=args.config, variant=res.variant, epochs=n, diodes=k, **extra,
                           ms_per_epoch=round(ms, 4), cpu_ms_per_epoch=round(cpu / n * 1e3, 4),
                           load_average=round(load0, 2), rays_per_s=round(rays / dt), rays_per_epoch=round(rays / n),
                           direct_samples_per_epoch=round(res.direct_samples.sum() / n),

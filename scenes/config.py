@@ -30,6 +30,7 @@ from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture, diode_frame
 from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
 from simcore.errors import InvalidInputError
+from scenes.materials import DEFAULT as DEFAULT_MATERIAL, check_material
 
 CONFIG_DIR = Path(__file__).resolve().parent
 MM = 1e-3
@@ -37,8 +38,8 @@ MM = 1e-3
 # Body defaults: a 2U CubeSat envelope (CubeSat Design Specification rev. 14:
 # 100 x 100 x 227 mm, 8.5 mm square rails) and the NUTS launch-pod clearance
 # (thesis sec. 4.2.1: 9 mm from the panel surface to the pod interior).
-BODY_DEFAULTS = {"size_mm": [100.0, 100.0, 227.0], "rail_mm": 8.5, "clearance_mm": 9.0}
-MOUNT_DEFAULTS = {"wall_mm": 0.5, "floor_mm": 0.5, "base_mm": 0.5}
+BODY_DEFAULTS = {"size_mm": [100.0, 100.0, 227.0], "rail_mm": 8.5, "clearance_mm": 9.0, "material": "black"}
+MOUNT_DEFAULTS = {"wall_mm": 0.5, "floor_mm": 0.5, "base_mm": 0.5, "material": "black"}
 LAYOUT_DEFAULTS = {"pattern": None, "tilt_deg": None, "fov_deg": None, "extra_flat_diodes": False,
                    "triangle_mm": [22.0, 40.0], "extra_offset_mm": 25.0}
 DIODE_KEYS = ("name", "panel", "normal", "az_deg", "el_deg", "at_mm", "fov_deg", "well")
@@ -116,6 +117,7 @@ class Mount:
     wall_m: float
     floor_m: float
     base_m: float
+    material: object = DEFAULT_MATERIAL  # of the ramps, floors and wells (scenes.materials)
 
 
 @dataclass(frozen=True)
@@ -125,6 +127,7 @@ class Body:
     size_m: tuple
     rail_m: float
     clearance_m: float
+    material: object = DEFAULT_MATERIAL  # scenes.materials: a name or a Mitsuba BSDF dict
 
     def panel_centre_m(self, panel):
         """Return the centre of a panel's outer surface (body frame, m)."""
@@ -409,12 +412,14 @@ class SatelliteConfig:
         if size.shape != (3,) or np.any(size <= 0):
             raise ConfigError(f"[body] size_mm must be three positive lengths (x, y, z) in mm, got {bd['size_mm']!r}")
         body = Body(size_m=tuple(size * MM), rail_m=float(bd["rail_mm"]) * MM,
-                    clearance_m=float(bd["clearance_mm"]) * MM)
+                    clearance_m=float(bd["clearance_mm"]) * MM,
+                    material=check_material(bd["material"], f"{where} [body] material"))
         md = _merged(data.get("mount"), MOUNT_DEFAULTS, "mount")
         if not (md["wall_mm"] > 0 and md["floor_mm"] > 0 and md["base_mm"] >= 0):
             raise ConfigError(f"[mount] wall_mm and floor_mm must be > 0 and base_mm >= 0, got {md}")
         mount = Mount(wall_m=float(md["wall_mm"]) * MM, floor_m=float(md["floor_mm"]) * MM,
-                      base_m=float(md["base_mm"]) * MM)
+                      base_m=float(md["base_mm"]) * MM,
+                      material=check_material(md["material"], f"{where} [mount] material"))
         tables = []
         layout = {}
         if "layout" in data:

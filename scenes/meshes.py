@@ -19,7 +19,9 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
   :func:`diode_surfaces`): the sensitive square, facing along the normal.
 
 Every part is a closed, consistently outward-oriented mesh (the diode squares
-excepted); parts touch but do not overlap.
+excepted); parts touch but do not overlap. Each part's ``metadata['material']`` is its
+surface material (:mod:`scenes.materials`: ``[body] material`` for the body,
+``[mount] material`` for ramps, floors and wells; diode squares 'black').
 """
 from __future__ import annotations
 
@@ -106,22 +108,26 @@ def build_parts(config, include_diodes=False):
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
     parts = {"body": body_mesh(config)}
+    parts["body"].metadata["material"] = config.body.material
     for k in range(config.n_diodes):
         for name, mesh in mount_meshes(config, k).items():
+            mesh.metadata["material"] = config.mount.material
             parts[f"{name}_{k}"] = mesh
     if include_diodes:
         surf = diode_surfaces(config)
         for k in range(config.n_diodes):
             parts[f"diode_{k}"] = trimesh.Trimesh(surf.vertices[4 * k:4 * k + 4], surf.faces[2 * k:2 * k + 2] - 4 * k,
                                                   process=False)
+            parts[f"diode_{k}"].metadata["material"] = "black"
     return parts
 
 
 def build_satellite_mesh(config):
     """Return the satellite's occluder (body, ramps, floors, wells) as one mesh, body frame, metres.
 
-    ``mesh.metadata['parts']`` maps each part name to its (first, stop) face range. The diodes'
-    sensitive surfaces are NOT included (see :func:`diode_surfaces`).
+    ``mesh.metadata['parts']`` maps each part name to its (first, stop) face range and
+    ``mesh.metadata['materials']`` to its material (the renderer path-traces the parts that are
+    not 'black'). The diodes' sensitive surfaces are NOT included (see :func:`diode_surfaces`).
     """
     parts = build_parts(config)
     ranges, start = {}, 0
@@ -130,6 +136,7 @@ def build_satellite_mesh(config):
         start += len(mesh.faces)
     mesh = trimesh.util.concatenate(list(parts.values()))
     mesh.metadata["parts"] = ranges
+    mesh.metadata["materials"] = {name: part.metadata["material"] for name, part in parts.items()}
     return mesh
 
 

@@ -168,7 +168,8 @@ def cmd_run(args):
         print(f"sunsim run: {out['configuration']}, {out['epochs']} epochs x {out['diodes']} diodes "
               f"in {elapsed:.1f} s ({ds.attrs['variant']})")
         print(f"  mean irradiance: direct {float(irr.sel(component='direct').mean()):.1f} W/m^2, "
-              f"albedo {float(irr.sel(component='albedo').mean()):.1f} W/m^2")
+              f"albedo {float(irr.sel(component='albedo').mean()):.1f} W/m^2, "
+              f"reflected {float(irr.sel(component='reflected').mean()):.1f} W/m^2")
         if report.get("verdict") == "no sunlit data":
             print("  analytic check: no sunlit data (the whole span is in the Earth's shadow; nothing to compare: "
                   "choose another --start or a longer --duration)")

@@ -52,7 +52,7 @@ def test_the_untouched_run_passes(base, tmp_path):
 @pytest.mark.parametrize("factor", [1.005, 0.995])
 def test_a_half_percent_albedo_bias_fails(base, tmp_path, factor):
     study, data = base
-    bad = dict(data, rendered=data["rendered"] * [1.0, factor])
+    bad = dict(data, rendered=data["rendered"] * [1.0, factor, 1.0])   # direct, albedo, reflected
     rc, report = _validate(tmp_path, study, bad, "albedo")
     assert rc == 1 and ("albedo", "bias") in _failed(report)
 
@@ -62,7 +62,7 @@ def test_a_fifth_of_a_percent_direct_bias_fails(base, tmp_path, factor):
     study, data = base
     plain = data["direct_plain"].copy()
     plain[..., 0] *= factor
-    bad = dict(data, rendered=data["rendered"] * [factor, 1.0], direct_plain=plain)
+    bad = dict(data, rendered=data["rendered"] * [factor, 1.0, 1.0], direct_plain=plain)
     rc, report = _validate(tmp_path, study, bad, "direct")
     assert rc == 1 and ("direct", "bias") in _failed(report)
 

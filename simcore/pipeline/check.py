@@ -23,6 +23,12 @@ error ``delta``. Three components are checked:
   (``simcore.radiometry.analytic.DirectionVisibility``; run file
   ``albedo_mesh``, ``albedo_visibility_error``).
 
+The fourth rendered component, ``reflected`` (sunlight and Earth light reflected
+by the spacecraft's own non-black surfaces onto a diode), is NOT checked: the
+analytic model's surfaces are black, so it has no reference for it; the report
+counts the diode-epochs that carry some (``reflected_unchecked``), and the path
+tracer is tested against closed forms in tests/test_reflected.py.
+
 For each component four families of tests, over the diode-epochs whose
 standard error is positive. The others are tested one by one: a value the
 renderer did not sample (exactly zero by geometry) must equal the reference to
@@ -225,6 +231,10 @@ def describe(report):
                      f"{report['albedo_mesh_quadrature']} of them with light through directions where shadows of "
                      f"the body or other parts cross the diode (there the reference takes the diode's visible "
                      f"share traced against the mesh, a deterministic quadrature)")
+    if report.get("reflected_unchecked"):
+        lines.append(f"  reflected: {report['reflected_unchecked']} diode-epochs with light reflected by the "
+                     f"spacecraft, not checked (the analytic model's surfaces are black; the path tracer's own "
+                     f"tests check it against closed forms)")
     for t in report["tests"]:
         stat = t["statistic"]
         if t["test"] in ("bias", "bias_per_diode") and stat is not None:

@@ -124,7 +124,8 @@ def true_signals(ds, errors):
         fov = np.radians(ds["fov_deg"].values)[None, :]
         light = (ds["sun_scale"].values * ds["illumination"].values)[:, None]
         direct = e_sun * light * basilisk_response(sun @ normals.T, fov, errors.kelly, errors.kelly_power)
-    return (direct + albedo) / e_sun, normals
+    reflected = irr[..., 2] if irr.shape[-1] > 2 else 0.0   # light the spacecraft reflects, as rendered
+    return (direct + albedo + reflected) / e_sun, normals
 
 
 def sensed_readings(ds, *, diode="BPW34FS", errors=None, faults=(), noise=False, seed=0):

@@ -252,16 +252,17 @@ class PreparedRun:
         pick = np.flatnonzero(plain_check_epochs(o.seed, len(self.epochs))[sl])
         if len(pick):
             sub = self.renderer.render(*(a[pick] for a in args), seed=o.seed, epoch_index=start + pick,
-                                       albedo=False, hint=False,
+                                       albedo=False, hint=False, reflected=False,
                                        direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
             plain[pick] = np.stack([sub.direct_w_m2, sub.direct_se_w_m2, sub.direct_dof], axis=-1)
         native = self.analytic(sl, self.map)
         fine = self.analytic(sl, self.map_refined, direct=False, mesh=True)
         out = {
-            "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2], axis=-1),
-            "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2], axis=-1),
-            "rendered_dof": np.stack([res.direct_dof, res.albedo_dof], axis=-1),
-            "samples": np.stack([res.direct_samples, res.albedo_samples], axis=-1).astype(np.int64),
+            "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2, res.reflected_w_m2], axis=-1),
+            "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2, res.reflected_se_w_m2], axis=-1),
+            "rendered_dof": np.stack([res.direct_dof, res.albedo_dof, res.reflected_dof], axis=-1),
+            "samples": np.stack([res.direct_samples, res.albedo_samples, res.reflected_samples],
+                                axis=-1).astype(np.int64),
             "direct_plain": plain,
             "analytic": np.stack([native.direct_w_m2, native.albedo_w_m2], axis=-1),
             "analytic_albedo_refined": fine.albedo_w_m2,
@@ -313,13 +314,27 @@ def _git_commit():
     return out.stdout.strip() if out.returncode == 0 else ""
 
 
+def _with_reflected(data):
+    """Return the chunk arrays with a third, ``reflected`` component (zeros, exact) where they have only direct
+    and albedo (run files written before the renderer traced reflections: all surfaces black)."""
+    if data["rendered"].shape[-1] == 3:
+        return data
+    out = dict(data)
+    for key, fill in (("rendered", 0.0), ("rendered_se", 0.0), ("rendered_dof", np.inf), ("samples", 0)):
+        a = np.asarray(data[key])
+        out[key] = np.concatenate([a, np.full(a.shape[:-1] + (1,), fill, dtype=a.dtype)], axis=-1)
+    return out
+
+
 def build_dataset(study, data, variant):
     """Return the run's xarray Dataset from the concatenated chunk arrays."""
     o, g, cfg = study.opts, study.geometry, study.config
     n, k = data["rendered"].shape[:2]
+    data = _with_reflected(data)
     bound = _check.discretisation_bound(data["analytic"][..., 1], data["analytic_albedo_refined"], CHECK_REFINE)
-    analytic = data["analytic"].copy()
-    analytic_ref = np.stack([analytic[..., 0], data["analytic_albedo_refined"]], axis=-1)
+    # the analytic model's surfaces are black: it reflects nothing; the check has no reference for it (NaN)
+    analytic = np.concatenate([data["analytic"][..., :2], np.zeros((n, k, 1))], axis=-1)
+    analytic_ref = np.stack([analytic[..., 0], data["analytic_albedo_refined"], np.full((n, k), np.nan)], axis=-1)
     names = [d.name for d in cfg.diodes]
     W = "W m-2"
     coords = {
@@ -328,8 +343,10 @@ def build_dataset(study, data, variant):
         "t_s": ("time", g.t_s, {"units": "s", "long_name": "seconds since the first epoch"}),
         "diode": ("diode", np.arange(k), {"units": "1", "long_name": "diode index"}),
         "diode_name": ("diode", np.array(names, dtype=object), {"long_name": "diode name in the configuration"}),
-        "component": ("component", np.array(["direct", "albedo"], dtype=object),
-                      {"long_name": "irradiance component: direct Sun or Earth albedo"}),
+        "component": ("component", np.array(["direct", "albedo", "reflected"], dtype=object),
+                      {"long_name": "irradiance component: direct Sun, Earth albedo, or Sun and Earth light "
+                                    "reflected by the spacecraft (the total is their sum; reflected is not "
+                                    "checked against the analytic model)"}),
         "xyz": ("xyz", np.array(["x", "y", "z"], dtype=object), {"long_name": "Cartesian axis"}),
         "statistic": ("statistic", np.array(["value", "se", "dof"], dtype=object),
                       {"long_name": "estimate, its standard error, their effective degrees of freedom"}),
@@ -419,8 +436,11 @@ def build_dataset(study, data, variant):
     if study.clouds is not None:
         ds.attrs.update(study.clouds.attrs(o.clouds))
     flags, report = check_run(ds)
-    ds["outlier"] = (("time", "diode", "component"), np.stack([flags["direct"], flags["albedo"]], axis=-1).astype(np.int8),
-                     {"units": "1", "long_name": "1 where the check's normal score |z| > 4 (or an exact value is off)"})
+    ds["outlier"] = (("time", "diode", "component"), np.stack([flags["direct"], flags["albedo"],
+                                                                     np.zeros_like(flags["direct"])],
+                                                                    axis=-1).astype(np.int8),
+                     {"units": "1", "long_name": "1 where the check's normal score |z| > 4 (or an exact value is off); "
+                                                "reflected is not checked (always 0)"})
     ds.attrs["check"] = json.dumps(report, sort_keys=True)
     ds.attrs["check_pass"] = int(report["pass"])
     return ds, report
@@ -605,6 +625,9 @@ def check_run(ds):
         components["direct_plain"] = (masked(plain[..., 0]), plain[..., 1], plain[..., 2],
                                       np.where(samples[..., 0] > 0, n_plain, 0), ref[..., 0], 0.0)
     flags, report = _check.compare(components, k, scale, scale * cos_inc)
+    if ds.sizes["component"] > 2:
+        refl = masked(irr[..., 2])
+        report["reflected_unchecked"] = int(np.count_nonzero(refl > 0))
     if "albedo_mesh" in ds:
         report["albedo_mesh_quadrature"] = int(np.count_nonzero((ds["albedo_mesh"].values > 0)
                                                                 & (ref[..., 1] > _check.ALBEDO_FLOOR_W_M2) & valid))
@@ -641,7 +664,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     if n != ds.sizes["time"]:
         raise ValueError(f"{path}: its options give {n} epochs but it holds {ds.sizes['time']}; "
                          "it was not made by this command's options")
-    native = np.zeros(ds["analytic"].shape)
+    native = np.zeros(ds["analytic"].shape[:2] + (2,))
     fine = np.zeros(ds["analytic"].shape[:2])
     mesh, mesh_err = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
     for s, e in chunk_ranges(n, chunk):

@@ -45,6 +45,29 @@ unbiased whatever the mesh; when the mesh's well is the analytic one, the
 aperture itself adds no noise and only the body, rails, neighbours and Earth
 do (see ``Renderer._rounds``). ``control_variate=False`` turns it off.
 
+Reflected (issue 13): sunlight and Earth light that reached the diode after at least one
+reflection on the spacecraft, when some part of the occluder mesh has a material other than
+'black' (``mesh.metadata['materials']`` per part, :mod:`scenes.materials`). Those parts become
+one Mitsuba scene (``mi.load_dict``) of per-part meshes with their BSDFs, path traced: from
+points on the diode (the direct estimator's diamond strata, two points each) a first direction
+drawn from a table of the diode's hemisphere that favours the cells where probe rays meet the
+spacecraft (``Renderer._hit_table``; on the thesis layout only ~5 % of cosine-weighted directions
+do), mixed with 10 % cosine-weighted sampling so that every direction keeps a density, the path
+weighted by cos / (pi pdf); a path that hits the spacecraft continues by BSDF
+sampling (``bsdf.sample``) up to ``max_depth`` vertices, Russian roulette from the fourth, and
+at every vertex estimates (a) the Sun: a point drawn uniformly on the finite solar disc, shadow
+ray against the mesh and the Earth, ``bsdf.eval`` for it, and (b) the Earth's albedo: a
+direction drawn uniformly in solid angle over the Earth's cap (``_cap_direction``; simple, and
+costs variance where a small sunlit crescent fills little of the cap), radiance
+``rho E cos_sun / pi`` (``_earth_along``) where the mesh does not block it. A BSDF-sampled
+direction that leaves the spacecraft and meets the Sun's disc or the Earth adds their radiance
+too, the two strategies combined by the power heuristic (Veach 1997, ch. 9), which is what lets
+smooth glass and mirrors (delta lobes: BSDF sampling only) reflect the Sun. Paths that leave
+the spacecraft at once add nothing (that light is ``direct`` / ``albedo``). The disc is always
+finite here (``SUN_ANGULAR_RADIUS_RAD`` when the renderer's Sun is a point): a mirror's image of
+a point Sun would be a delta that no sampling meets. All-black scenes build none of this and
+report ``reflected`` exactly 0 at no cost.
+
 Sums are formed per (epoch, diode) in float64 in numpy from the per-lane
 float32 values. Random numbers come from ``mi.sample_tea_32`` keyed by
 (seed, global epoch index, diode, estimator, round, group): a given seed gives
@@ -59,6 +82,7 @@ import os
 
 import numpy as np
 
+from scenes.materials import MaterialError, bsdf_dict, check_material, is_black
 from simcore import _llvm
 from simcore._llvm import host_array
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
@@ -78,7 +102,20 @@ _VIS_NT, _VIS_NP = 90, 180  # visibility table over each diode's hemisphere (1 x
 _EDGE_MIX, _MARGIN_SCALE = 0.4, 1.0
 # Estimators (part of the random-number key): the direct Sun, the albedo, the direct Sun without the
 # analytic aperture split (the check's independent estimate).
-_DIRECT, _ALBEDO, _DIRECT_PLAIN = 1, 2, 3
+_DIRECT, _ALBEDO, _DIRECT_PLAIN, _REFLECTED = 1, 2, 3, 4
+_REFLECTED_SAMPLES0 = 256
+# Path-tracer vertices leave the surface by this much along its normal (m): well above the float32
+# spacing of body coordinates (~1e-8 m at 0.1 m), well below any feature of a 0.5 mm well wall
+# (Mitsuba's own spawn_ray offsets by ~1e-4 of the coordinates plus 1e-4 units: 0.1 mm in metres).
+_SPAWN_EPS_M = 2e-6
+_RR_DEPTH = 3             # Russian roulette from the fourth path vertex on
+_REFLECTED_LANES = 1 << 20  # reflected paths gathered over epochs before a wavefront is launched
+# First direction of a reflected path: cells of each diode's hemisphere (zenith x azimuth) where probe rays
+# meet the spacecraft get the samples (paths into empty sky carry nothing: ~95 % of cosine-drawn ones on the
+# thesis layout), mixed with this share of cosine-weighted sampling so that every direction keeps a density
+# (the estimator stays unbiased whatever the probes missed).
+_HIT_NT, _HIT_NP, _HIT_PROBES, _HIT_COSINE = 45, 128, 4, 0.1
+_MAX_MIRROR_PLANES = 32   # orientations of smooth-specular faces sampled toward the Sun's mirror image
 # Rounds of the TEA hash behind every random number. Mitsuba's default, 4, is meant for seeding: with it
 # the two samples of a stratum (consecutive lanes) come out correlated and the pair estimate of the
 # variance reads ~8 % low (albedo z spread 1.09 over 4200 diode-epochs; 1.025 with 8 rounds, 1.006 with
@@ -200,7 +237,9 @@ class RenderResult:
 
     ``direct_*``: the Sun seen directly; ``albedo_*``: sunlight reflected by the
     Earth; ``*_se_w_m2``: one standard error of the Monte-Carlo estimate;
-    ``*_dof``: the standard error's effective degrees of freedom (inf where
+    ``reflected_*``: Sun and Earth light that reached the diode after at least one reflection on
+the spacecraft (exactly 0 when every part is 'black'); ``total_w_m2`` the sum of the three;
+``*_dof``: the standard error's effective degrees of freedom (inf where
     it is exactly 0; see ``Renderer._round``); ``*_samples``: rays traced for each (epoch, diode) (0 where the value is
     exactly zero by geometry: Sun behind the diode, full eclipse, no sunlit Earth
     in view). ``valid`` (N,): False for epochs whose inputs were not finite
@@ -219,14 +258,21 @@ class RenderResult:
     direct_dof: np.ndarray = None
     albedo_dof: np.ndarray = None
     info: dict = field(default_factory=dict)
+    reflected_w_m2: np.ndarray = None
+    reflected_se_w_m2: np.ndarray = None
+    reflected_samples: np.ndarray = None
+    reflected_dof: np.ndarray = None
 
     @property
     def total_w_m2(self):
-        return self.direct_w_m2 + self.albedo_w_m2
+        """Return direct + albedo + reflected (N, K), W/m^2."""
+        tot = self.direct_w_m2 + self.albedo_w_m2
+        return tot if self.reflected_w_m2 is None else tot + self.reflected_w_m2
 
     @property
     def rays(self):
-        return int(self.direct_samples.sum() + self.albedo_samples.sum())
+        extra = 0 if self.reflected_samples is None else int(self.reflected_samples.sum())
+        return int(self.direct_samples.sum() + self.albedo_samples.sum()) + extra
 
 
 def _mix32(*parts):
@@ -265,7 +311,10 @@ class Renderer:
     the 0.53 deg disc (penumbra, uniform disc: no limb darkening); ``variant``:
     see :func:`choose_variant`; ``threads``: Dr.Jit CPU threads (default: all);
     ``control_variate``: use the diodes' WellAperture for the aperture split
-    (module docstring) when ``diodes.apertures`` is given.
+    (module docstring) when ``diodes.apertures`` is given; ``max_depth``: the most
+    spacecraft vertices of a ``reflected`` path (module docstring). The mesh's materials:
+    ``metadata['parts']`` (face ranges) with ``metadata['materials']`` (per part), or one
+    ``metadata['material']`` for all of it (:mod:`scenes.materials`; default 'black').
 
     Building one traces a small visibility table per diode (1 x 2 deg, 3 x 3 probe
     rays from the part of the diode its well lights) that only shapes the albedo
@@ -274,7 +323,7 @@ class Renderer:
 
     def __init__(self, diodes, occluder_mesh=None, *, reflectivity=None, lon_west_deg=-180.0,
                  earth_radius_m=R_EARTH_MEAN_M, e_sun_w_m2=E_SUN_W_M2, sun_angular_radius_rad=0.0,
-                 variant=None, threads=None, control_variate=True):
+                 variant=None, threads=None, control_variate=True, max_depth=8):
         if not isinstance(diodes, DiodeSurfaces):
             raise TypeError("diodes must be a simcore.render.irradiance.DiodeSurfaces (positions_m, frames, sizes_m)")
         self.diodes = diodes
@@ -300,6 +349,11 @@ class Renderer:
         self.sun_angular_radius_rad = a
         self._refl_dr = host_array(mi.Float, refl)
         self._scene = self._build_scene(occluder_mesh)
+        if int(max_depth) < 1:
+            raise ValueError(f"max_depth must be >= 1 spacecraft vertex, got {max_depth}")
+        self.max_depth = int(max_depth)
+        self._mirror_normals = None
+        self._pt = self._build_pt_scene(occluder_mesh)
         self._diode_f32 = self._diode_arrays()
         # Aperture hint for the albedo sampling (half diode x/y, half opening x/y, height);
         # a bare diode (opening = diode, height 0) when unknown.
@@ -313,6 +367,7 @@ class Renderer:
                                         for (hx, hy), a in zip(half, aps)])
         self.control_variate = bool(control_variate) and aps is not None
         self._vis = self._visibility_table()
+        self._hit = None if self._pt is None else self._hit_table()
 
     # -- scene
     def _build_scene(self, mesh):
@@ -332,6 +387,84 @@ class Renderer:
         params["faces"] = host_array(mi.UInt32, f)
         params.update()
         return mi.load_dict({"type": "scene", "occluders": m})
+
+    def _build_pt_scene(self, mesh):
+        """Return the Mitsuba scene of the parts with their BSDFs (one mesh per part), or None when every
+        part is 'black' (then nothing is path traced)."""
+        if mesh is None or len(getattr(mesh, "faces", ())) == 0:
+            return None
+        meta = getattr(mesh, "metadata", {}) or {}
+        nf = len(mesh.faces)
+        if "materials" in meta and "parts" in meta:
+            parts = [(name, meta["parts"][name], meta["materials"][name]) for name in meta["parts"]]
+        else:
+            parts = [("mesh", (0, nf), meta.get("material", "black"))]
+        for name, _, spec in parts:
+            check_material(spec, f"part {name!r}")
+        if all(is_black(spec) for _, _, spec in parts):
+            return None
+        mi = self._mi
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        shapes = {"type": "scene"}
+        normals = []
+        fn = np.asarray(mesh.face_normals, dtype=np.float64)
+        for i, (name, (a, b), spec) in enumerate(parts):
+            if b <= a:
+                continue
+            used, inv = np.unique(f[a:b], return_inverse=True)
+            props = mi.Properties()
+            try:
+                props["bsdf"] = mi.load_dict(bsdf_dict(spec))
+            except Exception as exc:          # Mitsuba's message names the bad parameter
+                raise MaterialError(f"part {name!r}: Mitsuba cannot build the material {spec!r}: {exc}") from None
+            if mi.has_flag(props["bsdf"].flags(), mi.BSDFFlags.DeltaReflection):
+                normals.append(fn[a:b])
+            m = mi.Mesh(f"part{i}", len(used), b - a, props=props)
+            params = mi.traverse(m)
+            params["vertex_positions"] = host_array(mi.Float, v[used])
+            params["faces"] = host_array(mi.UInt32, inv)
+            params.update()
+            shapes[f"part{i}"] = m
+        self._mirror_normals = _plane_normals(normals)
+        return mi.load_dict(shapes)
+
+    def _hit_table(self):
+        """Return the proposal of the reflected paths' first direction: dict(pmf, cdf (K, NT NP) float32 as Dr.Jit
+        arrays, beta (K,): the cosine-weighted share). Per diode, cells equal in azimuth and in zenith angle;
+        a cell's weight is cos x solid angle x the largest share of probe rays (``_HIT_PROBES`` squared points
+        on the diode toward the cell's centre) that meet the mesh in it and its 8 neighbours; a diode whose
+        probes meet nothing samples cosine-weighted only (beta 1)."""
+        mi, dr = self._mi, self._dr
+        K = self.diodes.count
+        th_e = np.linspace(0.0, 0.5 * np.pi, _HIT_NT + 1)
+        th = 0.5 * (th_e[:-1] + th_e[1:])
+        ph = (np.arange(_HIT_NP) + 0.5) * (2.0 * np.pi / _HIT_NP) - np.pi
+        TH, PH = np.meshgrid(th, ph, indexing="ij")
+        local = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1).reshape(-1, 3)
+        g = (np.arange(_HIT_PROBES) + 0.5) / _HIT_PROBES - 0.5
+        fx, fy = [a.ravel() for a in np.meshgrid(g, g, indexing="ij")]
+        omega = (np.cos(th_e[:-1]) - np.cos(th_e[1:]))[:, None] * np.full(_HIT_NP, 2.0 * np.pi / _HIT_NP)
+        w_geo = (np.cos(th)[:, None] * omega).ravel()
+        pmf = np.zeros((K, _HIT_NT * _HIT_NP))
+        beta = np.ones(K)
+        for k in range(K):
+            d = local @ self.diodes.frames[k]
+            o = (self.diodes.positions_m[k] + fx[:, None] * self._diode_f32["U"][k] + fy[:, None] * self._diode_f32["V"][k])
+            oo = np.repeat(o, len(d), axis=0)
+            dd = np.tile(d, (len(o), 1))
+            hit = np.asarray(self._scene.ray_test(mi.Ray3f(self._v3(oo), self._v3(dd))).numpy(), float)
+            h = hit.reshape(len(o), _HIT_NT, _HIT_NP).mean(axis=0)
+            hp = np.pad(h, ((1, 1), (0, 0)), mode="edge")
+            hd = np.max([np.roll(hp, s_, axis=1)[1 + r_:_HIT_NT + 1 + r_] for r_ in (-1, 0, 1) for s_ in (-1, 0, 1)], axis=0)
+            w = w_geo * hd.ravel()
+            if w.sum() > 0:
+                pmf[k] = w / w.sum()
+                beta[k] = _HIT_COSINE
+        cdf = np.cumsum(pmf, axis=1)
+        cdf[:, -1] = np.where(cdf[:, -1] > 0, 1.0, 0.0)
+        return dict(pmf=host_array(mi.Float, pmf), cdf=host_array(mi.Float, cdf),
+                    beta=beta, omega=omega.ravel(), th_e=th_e)
 
     def _diode_arrays(self):
         d = self.diodes
@@ -507,6 +640,249 @@ class Renderer:
         ok = hit & (cos_sun > 0) & (cos_d > 0) & ~self._blocked_by_mesh(o, d)
         # f / q with q = pmf_b / Omega_b, Omega_b = 2 pi xmax dt / N_P; L = rho E cos_sun / pi
         return dr.select(ok, wgt * rho * cos_sun * cos_d * (2.0 / _N_P) * xmax * dt / pmf, 0.0)
+
+    # -- reflected kernel: paths from the diode off the spacecraft's BSDFs (module docstring)
+    def _reflected_kernel(self, t, task, j):
+        """Return the per-lane ``reflected`` irradiance (W/m^2) of tasks ``t``: a wavefront, one launch per
+        path vertex, whose code does not depend on the depth (it is compiled once and reused); after each
+        launch the paths still in flight are compacted (most leave the spacecraft at once)."""
+        dr, mi = self._dr, self._mi
+        n_lanes = dr.width(task)
+        total = dr.zeros(mi.Float, n_lanes)
+        lane = dr.arange(mi.UInt32, n_lanes)
+        scene = self._pt
+        D = self.max_depth
+        n_pairs = 2 + 4 * D + 4                       # TEA calls per lane (2 floats each)
+        a = self.sun_angular_radius_rad if self.sun_angular_radius_rad > 0 else SUN_ANGULAR_RADIUS_RAD
+        omc_max = 2.0 * np.sin(a / 2) ** 2            # 1 - cos a
+        p_sun = 1.0 / (2.0 * np.pi * omc_max)         # uniform in solid angle over the disc
+        has_earth = t["earth"] is not None
+        do_albedo = "rot" in t
+        ctx = mi.BSDFContext()
+
+        def env():
+            """Per-lane task data (gathered anew in each launch)."""
+            g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
+            v = dict(key=dr.gather(mi.UInt32, host_array(mi.UInt32, t["key"]), task), s=g3("sun"), pos=g3("pos"),
+                     E=dr.gather(mi.Float, host_array(mi.Float, t["E"]), task))
+            # disc radiance: int L cos(d, s) dOmega = E  =>  L = E / (Omega (1 + cos a) / 2)
+            v["L_sun"] = v["E"] * dr.opaque(mi.Float, 2.0 * p_sun / (2.0 - omc_max))
+            if has_earth:
+                v["c0"] = g3("earth")                 # Earth's centre from the diode's centre
+            if do_albedo:
+                v.update(s_e=g3("sun_e"), w=g3("w"), e1=g3("e1"), e2=g3("e2"),
+                         E_e=dr.gather(mi.Float, host_array(mi.Float, t["E_e"]), task),
+                         xmax=dr.gather(mi.Float, host_array(mi.Float, t["xmax"]), task),
+                         rot=[self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)])
+                v["p_earth"] = 1.0 / (2.0 * np.pi * v["xmax"])   # uniform in solid angle over the cap
+            return v
+
+        def rand(v, first_pair, n):
+            """Return 2n uniform floats from the lane's TEA stream, pairs first_pair.. (opaque: one kernel)."""
+            idx = j * n_pairs + dr.opaque(mi.UInt32, first_pair)
+            out = []
+            for i in range(n):
+                x, y = mi.sample_tea_32(v["key"], idx + i, _TEA_ROUNDS)
+                out += [mi.Float(x >> 8) * (1.0 / 16777216.0), mi.Float(y >> 8) * (1.0 / 16777216.0)]
+            return out
+
+        def earth_blocks(c, dd):
+            b = dr.dot(dd, c)
+            return (b > 0) & (dr.squared_norm(c - b * dd) < dr.opaque(mi.Float, self.earth_radius_m ** 2))
+
+        def spawn(si, dd):
+            nn = si.n
+            return si.p + nn * dr.select(dr.dot(nn, dd) > 0, _SPAWN_EPS_M, -_SPAWN_EPS_M)
+
+        def power(pa, pb):
+            return dr.select(pa > 0, pa * pa / (pa * pa + pb * pb), 0.0)
+
+        def in_disc(dd, axis):
+            # |dd - axis|^2 = 2 (1 - cos): a float32 dot product near 1 errs by ~1e-7, 1 % of 1 - cos a
+            return dr.squared_norm(dd - axis) <= dr.opaque(mi.Float, 2.0 * omc_max)
+
+        def disc_dir(axis, u1, u2):
+            omc = u1 * omc_max
+            sin_t = dr.sqrt(dr.maximum(omc * (2.0 - omc), 0.0))
+            phi = u2 * (2.0 * np.pi)
+            b1, b2 = mi.coordinate_system(axis)
+            return dr.normalize(axis * (1.0 - omc) + sin_t * (dr.cos(phi) * b1 + dr.sin(phi) * b2))
+
+        planes = self._mirror_normals
+
+        def p_spec(v, dd):
+            """Density (1/sr) of the mirror-image strategy for diode directions dd."""
+            cnt = mi.Float(0.0)
+            for pl in planes:
+                m_ = mi.Vector3f(*map(float, pl))
+                cnt += dr.select(in_disc(dd, v["s"] - 2.0 * dr.dot(v["s"], m_) * m_), 1.0, 0.0)
+            return cnt * (p_sun / len(planes))
+
+        # ---- launch 0: the diode point, the first direction and the mirror-image strategy
+        v = env()
+        m = dr.maximum(dr.gather(mi.UInt32, host_array(mi.UInt32, t["m"]), task), 1)
+        h = j >> 1
+        row = h // m
+        col = ((h - row * m) << 1) + (row & 1)
+        r = rand(v, 0, 2)
+        inv = dr.gather(mi.Float, host_array(mi.Float, 0.5 / t["m"]), task)
+        fx = (mi.Float(col) + r[0] + r[1] - 1.0) * inv
+        fy = (mi.Float(row) + r[0] - r[1]) * inv
+        fx = fx - dr.floor(fx) - 0.5
+        fy = fy - dr.floor(fy) - 0.5
+        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
+        o = v["pos"] + fx * self._gather3(self._v3(t["U"]), task) + fy * self._gather3(self._v3(t["V"]), task)
+        # first direction: the hit-table proposal mixed with cosine-weighted sampling (_hit_table)
+        B = _HIT_NT * _HIT_NP
+        hit = self._hit
+        kk = dr.gather(mi.UInt32, host_array(mi.UInt32, t["k"]), task)
+        beta = dr.gather(mi.Float, host_array(mi.Float, hit["beta"][t["k"]]), task)
+        cos_edges = host_array(mi.Float, np.cos(hit["th_e"]))
+        omega = host_array(mi.Float, hit["omega"])
+        rx = rand(v, 5 + 4 * D, 1)
+        loc = mi.warp.square_to_cosine_hemisphere(mi.Point2f(r[2], r[3]))
+        lo = dr.zeros(mi.UInt32, dr.width(task))
+        step = 1 << int(np.ceil(np.log2(B)))
+        while step >= 1:
+            idx = dr.minimum(lo + (step - 1), B - 1)
+            probe = dr.gather(mi.Float, hit["cdf"], kk * B + idx)
+            lo = dr.select((probe <= r[2]) & (lo + step <= B), lo + step, lo)
+            step //= 2
+        b = dr.minimum(lo, B - 1)
+        row, col = b // _HIT_NP, b % _HIT_NP
+        c0_, c1_ = dr.gather(mi.Float, cos_edges, row), dr.gather(mi.Float, cos_edges, row + 1)
+        ct = c0_ - r[3] * (c0_ - c1_)
+        st_ = dr.sqrt(dr.maximum(1.0 - ct * ct, 0.0))
+        phi_ = (mi.Float(col) + rx[1]) * (2.0 * np.pi / _HIT_NP) - np.pi
+        use_cos = rx[0] < beta
+        lx = dr.select(use_cos, loc.x, st_ * dr.cos(phi_))
+        ly = dr.select(use_cos, loc.y, st_ * dr.sin(phi_))
+        lz = dr.select(use_cos, loc.z, ct)
+        d = dr.normalize(lx * fr[0] + ly * fr[1] + lz * fr[2])
+
+        def pdf_dir(dd):
+            """Density (1/sr) of the first-direction proposal for diode directions dd."""
+            cz = dr.dot(fr[2], dd)
+            th = dr.acos(dr.clip(cz, -1.0, 1.0))
+            rw = mi.UInt32(dr.clip(mi.Int32(th * (_HIT_NT / (0.5 * np.pi))), 0, _HIT_NT - 1))
+            cl = mi.UInt32(dr.clip(mi.Int32((dr.atan2(dr.dot(fr[1], dd), dr.dot(fr[0], dd)) + np.pi)
+                                            * (_HIT_NP / (2.0 * np.pi))), 0, _HIT_NP - 1))
+            cell = rw * _HIT_NP + cl
+            tab = dr.gather(mi.Float, hit["pmf"], kk * B + cell) / dr.gather(mi.Float, omega, cell)
+            return dr.select(cz > 0, beta * cz * (1.0 / np.pi) + (1.0 - beta) * tab, 0.0)
+
+        pdf0 = pdf_dir(d)
+        cos0 = dr.dot(fr[2], d)
+        # the path's sums are radiances times cos / (pi pdf); x pi at the end: irradiance = E[L cos / pdf]
+        thr0 = dr.select((pdf0 > 0) & (cos0 > 0), cos0 / (np.pi * dr.maximum(pdf0, 1e-30)), 0.0)
+        acc = mi.Float(0.0)
+        if planes is not None:
+            # The Sun seen in a smooth mirror-like face (a delta lobe: no next-event estimate reaches it, and a
+            # cosine-drawn direction meets the 0.5 deg image with probability ~1e-5): draw a plane
+            # orientation, then a direction uniform over the Sun's mirror image in it, from the diode.
+            P = len(planes)
+            rs = rand(v, 2 + 4 * D, 3)
+            pick = dr.minimum(mi.UInt32(rs[0] * P), P - 1)
+            img = None
+            for i, pl in enumerate(planes):
+                m_ = mi.Vector3f(*map(float, pl))
+                im = v["s"] - 2.0 * dr.dot(v["s"], m_) * m_
+                img = im if img is None else dr.select(pick == i, im, img)
+            dm = disc_dir(img, rs[1], rs[2])
+            cos_m = dr.dot(fr[2], dm)
+            on = cos_m > 0
+            si_m = scene.ray_intersect(mi.Ray3f(o, dm), on)
+            on &= si_m.is_valid()
+            bs_m, w_m = si_m.bsdf().sample(ctx, si_m, rs[3], mi.Point2f(rs[4], rs[5]), on)
+            dn_m = si_m.to_world(bs_m.wo)
+            on &= mi.has_flag(bs_m.sampled_type, mi.BSDFFlags.Delta) & in_disc(dn_m, v["s"]) & (w_m[0] > 0)
+            on &= ~scene.ray_test(mi.Ray3f(spawn(si_m, dn_m), dn_m), on)
+            if has_earth:
+                on &= ~earth_blocks(v["c0"] - (si_m.p - v["pos"]), dn_m)
+            ps = p_spec(v, dm)
+            # this estimates irradiance directly; the path's sum below is multiplied by pi at the end
+            acc = dr.select(on, w_m[0] * v["L_sun"] * cos_m / ps * power(ps, pdf_dir(dm)), 0.0) / np.pi
+        st = dict(o=o, d=d, thr=thr0, acc=acc, active=dr.full(mi.Bool, True, dr.width(task)),
+                  pdf=mi.Float(0.0), delta=dr.full(mi.Bool, False, dr.width(task)), p=mi.Point3f(o),
+                  pdf0=pdf0, d0=d)
+        dr.eval(st)
+
+        # ---- launches 1..D (+1): a vertex each; the escape of the previous vertex's sampled direction first
+        for depth in range(D + 1):
+            v = env()
+            dv = dr.opaque(mi.UInt32, depth)
+            active, thr, acc = st["active"], st["thr"], st["acc"]
+            si = scene.ray_intersect(mi.Ray3f(st["o"], st["d"]), active)
+            hit = si.is_valid()
+            if depth > 0:
+                # ... it left the spacecraft: the Sun's disc or the Earth, weighted against next-event estimates
+                out = active & ~hit
+                c = (v["c0"] - (st["p"] - v["pos"])) if has_earth else None
+                in_sun = out & in_disc(st["d"], v["s"])
+                if has_earth:
+                    in_sun &= ~earth_blocks(c, st["d"])
+                w_delta = mi.Float(1.0)
+                if planes is not None:          # the mirror-image strategy also draws diode -> mirror -> Sun
+                    w_delta = dr.select(dv == 1, power(st["pdf0"], p_spec(v, st["d0"])), 1.0)
+                acc += dr.select(in_sun, thr * v["L_sun"] * dr.select(st["delta"], w_delta,
+                                                                      power(st["pdf"], mi.Float(p_sun))), 0.0)
+                if do_albedo:
+                    hit_e, cos_sun, rho = self._earth_along(st["d"], c, v["s_e"], v["rot"])
+                    ok = out & hit_e & (cos_sun > 0)
+                    L_e = rho * v["E_e"] * cos_sun * (1.0 / np.pi)
+                    acc += dr.select(ok, thr * L_e * dr.select(st["delta"], 1.0, power(st["pdf"], v["p_earth"])), 0.0)
+            if depth == D:
+                dr.scatter_add(total, acc, lane)
+                break
+            active &= hit
+            c = (v["c0"] - (si.p - v["pos"])) if has_earth else None
+            bsdf = si.bsdf()
+            r = rand(v, 2 + 4 * depth, 4)
+            # (a) the Sun: a point on the disc
+            ds = disc_dir(v["s"], r[0], r[1])
+            f, pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds), active)
+            ok = active & (f[0] > 0)
+            ok &= ~scene.ray_test(mi.Ray3f(spawn(si, ds), ds), ok)
+            if has_earth:
+                ok &= ~earth_blocks(c, ds)
+            acc += dr.select(ok, thr * f[0] * v["L_sun"] / p_sun * power(mi.Float(p_sun), pdf), 0.0)
+            # (b) the Earth: a direction uniform in its cap
+            if do_albedo:
+                de = self._cap_direction(v["w"], v["e1"], v["e2"], v["xmax"], r[2], r[3] * (2.0 * np.pi))
+                hit_e, cos_sun, rho = self._earth_along(de, c, v["s_e"], v["rot"])
+                f, pdf = bsdf.eval_pdf(ctx, si, si.to_local(de), active)
+                ok = active & hit_e & (cos_sun > 0) & (f[0] > 0)
+                ok &= ~scene.ray_test(mi.Ray3f(spawn(si, de), de), ok)
+                L_e = rho * v["E_e"] * cos_sun * (1.0 / np.pi)
+                acc += dr.select(ok, thr * f[0] * L_e / v["p_earth"] * power(v["p_earth"], pdf), 0.0)
+            # continue by BSDF sampling; Russian roulette from the fourth vertex on
+            bs, wgt = bsdf.sample(ctx, si, r[4], mi.Point2f(r[5], r[6]), active)
+            dn = si.to_world(bs.wo)
+            thr = dr.select(active, thr * wgt[0], 0.0)
+            rr = active & (dv + 1 >= _RR_DEPTH)
+            keep = dr.minimum(thr, 0.95)
+            survive = ~rr | (r[7] < keep)
+            thr = dr.select(rr, dr.select(survive, thr / dr.maximum(keep, 1e-12), 0.0), thr)
+            active &= survive & (thr > 0)
+            st.update(o=spawn(si, dn), d=dn, thr=thr, acc=acc, active=active, pdf=bs.pdf,
+                      delta=mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta), p=si.p)
+            dr.eval(st)
+            # bank what the paths gathered at this vertex, keep the live ones
+            dr.scatter_add(total, st["acc"], lane)
+            keep_idx = dr.compress(active)
+            if dr.width(keep_idx) == 0:
+                break
+            st = {k: dr.gather(type(x), x, keep_idx) for k, x in st.items()}
+            lane, task, j = (dr.gather(mi.UInt32, x, keep_idx) for x in (lane, task, j))
+            if dr.width(keep_idx) < 2:   # a 1-element array would be baked into the kernel as a literal
+                pad = mi.UInt32([0, 0])
+                st = {k: dr.gather(type(x), x, pad) for k, x in st.items()}
+                st["active"] = mi.Bool([True, False])
+                lane, task, j = (dr.gather(mi.UInt32, x, pad) for x in (lane, task, j))
+            st["acc"] = dr.zeros(mi.Float, dr.width(lane))
+            dr.eval(st, lane, task, j)
+        # irradiance = int L cos dOmega = pi E[L] for directions drawn with density cos / pi
+        return total * np.pi
 
     # -- the Earth seen along a direction: shared by the albedo kernel and its proposal
     def _earth_along(self, d, c, s, rot):
@@ -734,7 +1110,8 @@ class Renderer:
                sun_dir_earth_body=None, earth_sun_scale=None, seed=0, epoch_offset=0, epoch_index=None, direct_samples=_DIRECT_SAMPLES0, albedo_samples=2 * _ALBEDO_STRATA0,
                rel_se_direct=None, rel_se_albedo=None, abs_se_floor_w_m2=0.01,
                max_direct_samples=1 << 17,
-               max_albedo_samples=65536, albedo=True, hint=True, batch_epochs=64, progress=None):
+               max_albedo_samples=65536, albedo=True, hint=True, batch_epochs=64, progress=None,
+               reflected=True, reflected_samples=_REFLECTED_SAMPLES0):
         """Return a :class:`RenderResult`: direct-Sun and albedo irradiance (N, K) in W/m^2 with
         standard errors.
 
@@ -754,6 +1131,9 @@ class Renderer:
         (plain sampling of the diode, its own random numbers): an estimate that shares nothing with the
         analytic aperture model, for the check. ``batch_epochs``: epochs per wavefront (results do not depend on it).
         ``progress``: optional callable, called with the number of epochs done after each batch.
+        ``reflected_samples`` (4 m^2) paths per diode-epoch for the ``reflected`` component (only when some
+        part is not 'black'; ``reflected=False`` skips it: zeros; with ``albedo=False`` or no Earth it holds the
+        reflected sunlight only).
 
         Per-epoch problems (non-finite inputs) give NaN rows and ``valid`` False; exact zeros
         (Sun behind the diode, full eclipse, no sunlit Earth in the diode's half-space) cost no
@@ -798,6 +1178,10 @@ class Renderer:
         n0 = int(albedo_samples)
         if n0 < 4 or n0 % 2:
             raise ValueError(f"albedo_samples must be an even number >= 4 (2 per stratum), got {albedo_samples}")
+        mr = int(round(np.sqrt(int(reflected_samples) / 4.0)))
+        if mr < 2 or 4 * mr * mr != int(reflected_samples):
+            raise ValueError(f"reflected_samples must be 4 m^2 for an integer m >= 2 (2 points in each of "
+                             f"2 m^2 strata of the diode), e.g. 256 or 1024, got {reflected_samples}")
         for name, v in (("rel_se_direct", rel_se_direct), ("rel_se_albedo", rel_se_albedo)):
             if v is not None and not 0 < v < 1:
                 raise ValueError(f"{name} must be a relative standard error in (0, 1), e.g. 0.002, got {v}")
@@ -823,8 +1207,11 @@ class Renderer:
             rot = np.where(valid[:, None, None], rot, np.eye(3))
 
         K = self.diodes.count
-        out = {k: np.zeros((N, K)) for k in ("dm", "dse", "am", "ase")}
-        out.update(ddof=np.full((N, K), np.inf), adof=np.full((N, K), np.inf))
+        out = {k: np.zeros((N, K)) for k in ("dm", "dse", "am", "ase", "rm", "rse")}
+        out.update(ddof=np.full((N, K), np.inf), adof=np.full((N, K), np.inf), rdof=np.full((N, K), np.inf))
+        n_ref = np.zeros((N, K), dtype=np.int64)
+        do_reflected = bool(reflected) and self._pt is not None
+        pending = []
         n_dir = np.zeros((N, K), dtype=np.int64)
         n_alb = np.zeros((N, K), dtype=np.int64)
         E = self.e_sun_w_m2 * scale                                  # (N,)
@@ -866,6 +1253,26 @@ class Renderer:
                 if len(e_):
                     self._albedo_rounds(e_, k_, g_ep[act], sun_e, earth, rot, E_e, seed, n0, rel_se_albedo,
                                         abs_se_floor_w_m2, max_albedo_samples, out, n_alb)
+            # ---- reflected: every task with sunlight on the satellite or a sunlit Earth in its sky
+            if do_reflected:
+                act = valid[ep].copy()
+                if earth is not None:
+                    c = earth[ep]
+                    dist = np.linalg.norm(c, axis=1)
+                    bb = np.einsum("ti,ti->t", c, sun[ep])
+                    perp = np.linalg.norm(c - bb[:, None] * sun[ep], axis=1)
+                    sunny = ~((bb > 0) & (perp < R - dist * sin_a - 10.0))
+                    lam = np.arccos(np.clip(R / dist, -1, 1))
+                    lit = np.einsum("ti,ti->t", -c / dist[:, None], sun_e[ep]) > np.cos(np.minimum(np.pi / 2 + lam, np.pi))
+                    act &= sunny | (do_albedo & lit)
+                pending.append((ep[act], dk[act], g_ep[act]))
+                # the wavefront's launches cost ~10 ms each to trace whatever their width: gather many epochs
+                if sum(len(p[0]) for p in pending) * 4 * mr * mr >= _REFLECTED_LANES or eps[-1] == N - 1:
+                    e_, k_, gg = (np.concatenate(x) for x in zip(*pending))
+                    pending = []
+                    if len(e_):
+                        self._reflected_round(e_, k_, gg, sun, sun_e, earth if do_albedo else None, rot,
+                                              earth, E, E_e, seed, 4 * mr * mr, out, n_ref)
             if progress is not None:
                 progress(len(eps))
         nan = ~valid
@@ -873,7 +1280,8 @@ class Renderer:
             out[k][nan] = np.nan
         return RenderResult(out["dm"], out["dse"], out["am"], out["ase"], n_dir, n_alb, valid,
                             self.variant, int(seed), out["ddof"], out["adof"],
-                            dict(sun_angular_radius_rad=self.sun_angular_radius_rad, e_sun_w_m2=self.e_sun_w_m2))
+                            dict(sun_angular_radius_rad=self.sun_angular_radius_rad, e_sun_w_m2=self.e_sun_w_m2),
+                            out["rm"], out["rse"], n_ref, out["rdof"])
 
     def _rounds(self, kernel, base, kind, g_, k_, seed, n0, rel, floor, cap, fac, size, power, skip=None,
                 plain=False):
@@ -969,6 +1377,27 @@ class Renderer:
                                      _albedo_size, 2.0)
         out["am"][e_, k_], out["ase"][e_, k_], out["adof"][e_, k_], n_used[e_, k_] = m, se, dof, n
 
+    def _reflected_round(self, e_, k_, g_, sun, sun_e, earth_alb, rot, earth, E, E_e, seed, n, out, n_used):
+        """Path-trace ``n`` samples of the ``reflected`` component for tasks (e_, k_) into ``out``."""
+        base = self._tasks(e_, k_, sun, earth, None)
+        base["E"] = E[e_]
+        if earth_alb is not None:
+            base["rot"] = rot[e_]
+            base["sun_e"] = sun_e[e_]
+            base["E_e"] = E_e[e_]
+            c = base["earth"]
+            dist = np.linalg.norm(c, axis=1)
+            w = c / dist[:, None]
+            R = self.earth_radius_m
+            base["xmax"] = (R / dist) ** 2 / (1.0 + np.sqrt(np.clip(1.0 - (R / dist) ** 2, 0.0, None)))
+            ref = np.where(np.abs(w[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+            e1 = np.cross(ref, w)
+            e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+            base.update(w=w, e1=e1, e2=np.cross(w, e1))
+        m, se, dof, nr = self._round(self._reflected_kernel, base, _REFLECTED, g_, k_, seed,
+                                     np.full(len(e_), n, np.int64), 0, 1.0, _direct_size, None, plain=True)
+        out["rm"][e_, k_], out["rse"][e_, k_], out["rdof"][e_, k_], n_used[e_, k_] = m, se, dof, nr
+
     def _partly_blocked(self, base, e_, sun, earth):
         """Return (T,) bool: the direct-Sun tasks whose light something other than the diode's own analytic
         well blocks in part: the Earth's limb across the solar disc, or the mesh (body, rails, neighbours)
@@ -1037,6 +1466,21 @@ class Renderer:
         dd = np.einsum("tij,tj->ti", self.diodes.frames[k_], d_body)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return lit_rectangle(ap[:, 0], ap[:, 1], ap[:, 2], ap[:, 3], ap[:, 4], dd[:, 0], dd[:, 1], dd[:, 2])[4]
+
+
+def _plane_normals(normals, max_planes=_MAX_MIRROR_PLANES):
+    """Return the distinct orientations (P, 3) (sign ignored) of the faces of smooth-specular parts, or
+    None when there are none or more than ``max_planes`` (curved mirrors: BSDF sampling alone)."""
+    if not normals:
+        return None
+    n = np.concatenate(normals)
+    n = n[np.isfinite(n).all(axis=1) & (np.linalg.norm(n, axis=1) > 0.5)]
+    first = np.argmax(np.abs(n) > 1e-9, axis=1)
+    n = n * np.sign(n[np.arange(len(n)), first])[:, None]
+    uniq = np.unique(np.round(n, 6), axis=0)
+    if not 0 < len(uniq) <= max_planes:
+        return None
+    return uniq / np.linalg.norm(uniq, axis=1, keepdims=True)
 
 
 def _direct_size(n):
