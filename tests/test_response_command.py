@@ -72,3 +72,19 @@ def test_bad_input_is_one_line_and_nothing_is_written(capsys, tmp_path, monkeypa
     err = capsys.readouterr().err.strip()
     assert words in err and len(err.splitlines()) == 1, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_aluminium_wells_add_reflected_light_to_the_response():
+    # The shipped example scenes/examples/tilt20_fov70_aluminium.toml: the same wells in bare aluminium. Their walls
+    # reflect sunlight onto a ramp diode once the Sun is off its normal (the walls facing it are then lit); the
+    # direct part is the black layout's.
+    from pathlib import Path
+    example = Path(__file__).resolve().parents[1] / "scenes" / "examples" / "tilt20_fov70_aluminium.toml"
+    (alu,) = traced_response(str(example), diodes=[3], plane="y", step_deg=10, samples=1024, reflected_samples=1024)
+    (black,) = traced_response("tilt20_fov70", diodes=[3], plane="y", step_deg=10, samples=1024)
+    np.testing.assert_allclose(alu.direct, black.direct, atol=1e-9)
+    assert np.all(black.reflected == 0)
+    lit = (alu.theta_deg >= 20) & (alu.theta_deg <= 60)
+    # reflected light is positive and resolved: > 3 standard errors at every lit angle (false alarm ~1e-3 each)
+    se_r = np.sqrt(np.maximum(alu.response_se ** 2 - black.response_se ** 2, 0.0))
+    assert np.all(alu.reflected[lit] > 3 * se_r[lit]), np.c_[alu.theta_deg, alu.reflected, se_r]

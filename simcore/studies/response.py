@@ -10,8 +10,9 @@ Kelly factor kappa fitted to the traced curve (:func:`simcore.sensor.errors.basi
 Basilisk user can carry the traced optics over. ``map`` adds the response over the diode's whole
 hemisphere (angle from the normal x azimuth from u).
 
-``reflected`` is the light reaching the diode after a reflection on the spacecraft: the configurations'
-surfaces are ideal absorbers (black), so it is 0 here.
+``reflected`` is the sunlight reaching the diode after at least one reflection on the spacecraft, path traced
+off the parts' materials (:mod:`scenes.materials`; exactly 0 where every surface is ``black``), and ``response``
+is direct + reflected, its standard error the two combined.
 """
 from dataclasses import dataclass
 
@@ -118,11 +119,12 @@ def _check(cfg, diodes, plane, step_deg, samples, map_step_deg):
 
 
 def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, seed=0, variant=None,
-                    map_step_deg=None):
+                    map_step_deg=None, reflected_samples=1024):
     """Return [DiodeResponse] of the diodes ``diodes`` (indices; None: all) of a configuration (a name, a
     path or a ``SatelliteConfig``): the traced response every ``step_deg`` from 0 to 90 deg in ``plane``
     ('x' or 'y' of each diode's frame), ``samples`` direct-Sun samples per diode and angle; with
-    ``map_step_deg``, also the response over the diode's hemisphere on that grid."""
+    ``map_step_deg``, also the response over the diode's hemisphere on that grid; ``reflected_samples``
+    (4 m^2) paths per diode and angle for the light the spacecraft reflects (when some part is not black)."""
     cfg = config if isinstance(config, SatelliteConfig) else SatelliteConfig.load(config)
     idx = _check(cfg, diodes, plane, float(step_deg), samples, map_step_deg)
     all_ds = DiodeSurfaces.from_config(cfg)
@@ -135,9 +137,10 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
     out = []
     for j, k in enumerate(idx):
         frame = ds.frames[j]
-        res = rend.render(d_local @ frame, seed=seed, direct_samples=int(samples), albedo=False)
-        direct, se = res.direct_w_m2[:, j], res.direct_se_w_m2[:, j]
-        reflected = np.zeros_like(direct)             # black surfaces reflect nothing (module docstring)
+        res = rend.render(d_local @ frame, seed=seed, direct_samples=int(samples), albedo=False,
+                          reflected_samples=reflected_samples)
+        direct, reflected = res.direct_w_m2[:, j], res.reflected_w_m2[:, j]
+        se = np.hypot(res.direct_se_w_m2[:, j], res.reflected_se_w_m2[:, j])
         total = direct + reflected
         ap = ds.apertures[j]
         fov = float(cfg.fov_deg[k])
@@ -155,9 +158,10 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
             TH, PH = np.meshgrid(np.radians(mt), np.radians(mp), indexing="ij")
             dm = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1).reshape(-1, 3)
             m_map = max(2, int(round(np.sqrt(samples / 4))) // 2)          # a quarter of the samples
-            mres = rend.render(dm @ frame, seed=seed + 1, direct_samples=4 * m_map * m_map, albedo=False)
+            mres = rend.render(dm @ frame, seed=seed + 1, direct_samples=4 * m_map * m_map, albedo=False,
+                               reflected_samples=reflected_samples)
             r.map_theta_deg, r.map_phi_deg = mt, mp
-            r.map_response = mres.direct_w_m2[:, j].reshape(TH.shape)
+            r.map_response = (mres.direct_w_m2[:, j] + mres.reflected_w_m2[:, j]).reshape(TH.shape)
         out.append(r)
     return out
 
