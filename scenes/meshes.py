@@ -15,6 +15,8 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
   from the diode surface up to ``aperture.height_m``; its inner cross-section is
   the aperture's opening and its walls run along the diode frame's u and v axes
   (:func:`simcore.shapes.aperture.diode_frame`). Absent for a bare diode (height 0).
+- ``part_NAME``: each extra part of the configuration (``[[part]]``: a mesh file or a box, placed and
+  hinged, :class:`scenes.config.Part`), as given (not necessarily closed).
 - ``diode_k`` (only in :func:`build_parts` with ``include_diodes=True`` and in
   :func:`diode_surfaces`): the sensitive square, facing along the normal.
 
@@ -104,7 +106,7 @@ def diode_surfaces(config):
 
 
 def build_parts(config, include_diodes=False):
-    """Return the named parts {'body', 'ramp_k', 'floor_k', 'well_k'[, 'diode_k']} (body frame, m)."""
+    """Return the named parts {'body', 'ramp_k', 'floor_k', 'well_k', 'part_NAME'[, 'diode_k']} (body frame, m)."""
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
     parts = {"body": body_mesh(config)}
@@ -113,6 +115,10 @@ def build_parts(config, include_diodes=False):
         for name, mesh in mount_meshes(config, k).items():
             mesh.metadata["material"] = config.mount.material
             parts[f"{name}_{k}"] = mesh
+    for part in config.parts:
+        mesh = trimesh.Trimesh(part.vertices_m, part.faces, process=False)
+        mesh.metadata["material"] = part.material
+        parts[f"part_{part.name}"] = mesh
     if include_diodes:
         surf = diode_surfaces(config)
         for k in range(config.n_diodes):

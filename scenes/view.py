@@ -146,16 +146,17 @@ def wide_camera(g, width, height):
     return Camera(tuple(WIDE_DISTANCE_M * c), (0.0, 0.0, 0.0), tuple(zenith), WIDE_FOV_DEG, int(width), int(height))
 
 
-def close_up_cameras(width, height):
-    """Return {label: :class:`Camera`} of the close-up's four panels side by side (width split in four), body z up."""
+def close_up_cameras(width, height, half_size_m=CLOSE_HALF_SIZE_M, distance_m=CLOSE_DISTANCE_M):
+    """Return {label: :class:`Camera`} of the close-up's four panels side by side (width split in four), body z up,
+    each showing ``half_size_m`` (width, height) around the centre from ``distance_m``."""
     n = len(CLOSE_DIRECTIONS)
     widths = [width // n + (1 if i < width % n else 0) for i in range(n)]
     cams = {}
     for (label, d), w in zip(CLOSE_DIRECTIONS.items(), widths):
         d = np.asarray(d, float) / np.linalg.norm(d)
         w = max(int(w), 1)
-        tan_x = max(CLOSE_HALF_SIZE_M[0], CLOSE_HALF_SIZE_M[1] * w / height) / CLOSE_DISTANCE_M
-        cams[label] = Camera(tuple(CLOSE_DISTANCE_M * d), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0),
+        tan_x = max(half_size_m[0], half_size_m[1] * w / height) / distance_m
+        cams[label] = Camera(tuple(distance_m * d), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0),
                              float(np.degrees(2 * np.arctan(tan_x))), w, int(height))
     return cams
 
@@ -330,7 +331,11 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
     g = view_epoch_.geometry
     width, height = int(resolution[0]), int(resolution[1])
     if close_up:
-        cams = close_up_cameras(width, height)
+        # framed on the whole satellite: the body and any extra parts (deployed panels, antennas)
+        pts = np.vstack([np.asarray(config.body.size_m) / 2.0] + [np.abs(p.vertices_m) for p in config.parts])
+        ext = np.abs(pts).max(axis=0)
+        half = (max(CLOSE_HALF_SIZE_M[0], 1.15 * max(ext[0], ext[1])), max(CLOSE_HALF_SIZE_M[1], 1.15 * ext[2]))
+        cams = close_up_cameras(width, height, half, max(CLOSE_DISTANCE_M, 3.0 * float(ext.max())))
     else:
         cams = {"": wide_camera(g, width, height)}
     panels = [_render_panel(config, g, cam, rmap, not close_up, spp, seed, label) for label, cam in cams.items()]

@@ -231,6 +231,9 @@ def describe(report):
                      f"{report['albedo_mesh_quadrature']} of them with light through directions where shadows of "
                      f"the body or other parts cross the diode (there the reference takes the diode's visible "
                      f"share traced against the mesh, a deterministic quadrature)")
+    if report.get("direct_unchecked"):
+        lines.append(f"  direct: {report['direct_unchecked']} diode-epochs left out: a part the analytic model does "
+                     f"not know ([[part]]: panels, antennas, user meshes) may shade the Sun there")
     if report.get("reflected_unchecked"):
         lines.append(f"  reflected: {report['reflected_unchecked']} diode-epochs with light reflected by the "
                      f"spacecraft, not checked (the analytic model's surfaces are black; the path tracer's own "

@@ -29,7 +29,7 @@ from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance
 from simcore.shapes.occlusion import box_hit
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.render.irradiance import DiodeSurfaces, Renderer, occluder_scene, rays_blocked
 
 from simcore import _llvm
 from simcore._version import __version__
@@ -196,6 +196,49 @@ class PreparedRun:
         return g.sun_distance_scale[sl] if self.opts.distance_scaling else np.ones(sl.stop - sl.start)
 
     @functools.cached_property
+    def _parts_scene(self):
+        """Return the Mitsuba occluder scene of the configuration's extra parts ([[part]]) alone, or None."""
+        if not self.config.parts:
+            return None
+        import trimesh
+        self.renderer                                   # sets the Mitsuba variant
+        mesh = trimesh.util.concatenate([trimesh.Trimesh(p.vertices_m, p.faces, process=False)
+                                         for p in self.config.parts])
+        return occluder_scene(mesh, _llvm.import_mitsuba())
+
+    def parts_shadow(self, sl):
+        """Return (n, K) bool: the diode-epochs of ``sl`` whose direct Sun a part of the configuration other than
+        the body box and the mounts ([[part]]: panels, antennas, user meshes) may block, which the analytic
+        model does not know: a ray from any of 3 x 3 points over the diode toward the Sun's centre or 16 points
+        on its rim meets such a part. The check leaves their direct Sun out (counted, with the reason)."""
+        g, cfg = self.geometry, self.config
+        n, K = sl.stop - sl.start, cfg.n_diodes
+        if self._parts_scene is None:
+            return np.zeros((n, K), bool)
+        s = g.sun_dir_body[sl]
+        ok = np.all(np.isfinite(s), axis=1)
+        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
+        helper = np.where(np.abs(s[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+        e1 = np.cross(s, helper)
+        e1 /= np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-30)
+        e2 = np.cross(s, e1)
+        ang = 2 * np.pi * np.arange(16) / 16
+        dirs = np.concatenate([s[:, None], s[:, None] + a * (np.cos(ang)[None, :, None] * e1[:, None]
+                                                             + np.sin(ang)[None, :, None] * e2[:, None])], axis=1)
+        dirs /= np.linalg.norm(dirs, axis=2, keepdims=True)                             # (n, 17, 3)
+        f = np.linspace(-0.5, 0.5, 3)
+        F = np.asarray(cfg.frames)
+        sizes = np.array([[d.aperture.diode_x_m, d.aperture.diode_y_m] for d in cfg.diodes])
+        U, V = sizes[:, :1] * F[:, 0], sizes[:, 1:] * F[:, 1]                           # (K, 3) each
+        pts = (np.asarray(cfg.positions_m)[:, None, None] + f[None, :, None, None] * U[:, None, None]
+               + f[None, None, :, None] * V[:, None, None]).reshape(K, 9, 3)
+        o = np.broadcast_to(pts[None, :, :, None], (n, K, 9, 17, 3))
+        d = np.broadcast_to(dirs[:, None, None], (n, K, 9, 17, 3))
+        front = np.einsum("nj,kj->nk", np.where(ok[:, None], s, 0.0), F[:, 2]) > -a
+        hit = rays_blocked(self._parts_scene, o.reshape(-1, 3), d.reshape(-1, 3), _llvm.import_mitsuba())
+        return hit.reshape(n, K, 9 * 17).any(axis=2) & front & ok[:, None]
+
+    @functools.cached_property
     def visibility(self):
         """Return the ``DirectionVisibility`` of the check's albedo reference: in the cells of
         :attr:`shaded_directions`, the visible share of each diode traced against the mesh on a 0.25 x 0.5
@@ -268,6 +311,7 @@ class PreparedRun:
             "analytic_albedo_refined": fine.albedo_w_m2,
             "albedo_mesh": fine.albedo_mesh_w_m2,
             "albedo_visibility_error": fine.albedo_visibility_error_w_m2,
+            "direct_unchecked": self.parts_shadow(sl),
             "valid": valid & res.valid,
         }
         return out
@@ -384,6 +428,11 @@ def build_dataset(study, data, variant):
             "albedo_visibility_error": (("time", "diode"), data["albedo_visibility_error"],
                                         {"units": W, "long_name": "estimated error of the reference's traced "
                                                                   "visible share (its grid made twice as coarse)"}),
+            "direct_unchecked": (("time", "diode"), np.asarray(data.get("direct_unchecked", np.zeros((n, k), bool)),
+                                                               np.int8),
+                                 {"units": "1", "long_name": "1 where a part the analytic model does not know "
+                                                             "([[part]]: panels, antennas, user meshes) may block the "
+                                                             "direct Sun: the check leaves that direct value out"}),
             "sun_dir_body": (("time", "xyz"), g.sun_dir_body, {"units": "1", "long_name": "unit satellite->Sun vector",
                                                                  "frame": "body"}),
             "sun_scale": ("time", study.sun_scale(slice(0, n)),
@@ -610,10 +659,13 @@ def check_run(ds):
     dof = ds["irradiance_dof"].values if "irradiance_dof" in ds else np.full(irr.shape, np.inf)
     valid = np.broadcast_to(ds["valid"].values.astype(bool)[:, None], (n, k))
     masked = lambda a: np.where(valid, a, np.nan)  # noqa: E731
+    # the direct Sun where extra parts may shadow it: no analytic reference (reported as unchecked)
+    parts = ds["direct_unchecked"].values.astype(bool) if "direct_unchecked" in ds else np.zeros((n, k), bool)
+    masked_direct = lambda a: np.where(valid & ~parts, a, np.nan)  # noqa: E731
     bound = ds["albedo_discretisation_bound"].values
     samples = ds["samples"].values
     components = {
-        "direct": (masked(irr[..., 0]), se[..., 0], dof[..., 0], samples[..., 0], ref[..., 0], 0.0),
+        "direct": (masked_direct(irr[..., 0]), se[..., 0], dof[..., 0], samples[..., 0], ref[..., 0], 0.0),
         "albedo": (masked(irr[..., 1]), se[..., 1], dof[..., 1], samples[..., 1], ref[..., 1], bound ** 2),
     }
     if "albedo_visibility_error" in ds:
@@ -622,12 +674,13 @@ def check_run(ds):
         plain = ds["direct_plain"].values
         # the hint-free estimate always takes the run's first-round count (no target accuracy)
         n_plain = max(json.loads(ds.attrs["options"]).get("direct_samples", 1024), PLAIN_CHECK_SAMPLES)
-        components["direct_plain"] = (masked(plain[..., 0]), plain[..., 1], plain[..., 2],
+        components["direct_plain"] = (masked_direct(plain[..., 0]), plain[..., 1], plain[..., 2],
                                       np.where(samples[..., 0] > 0, n_plain, 0), ref[..., 0], 0.0)
     flags, report = _check.compare(components, k, scale, scale * cos_inc)
     if ds.sizes["component"] > 2:
         refl = masked(irr[..., 2])
         report["reflected_unchecked"] = int(np.count_nonzero(refl > 0))
+    report["direct_unchecked"] = int(np.count_nonzero(parts & valid))
     if "albedo_mesh" in ds:
         report["albedo_mesh_quadrature"] = int(np.count_nonzero((ds["albedo_mesh"].values > 0)
                                                                 & (ref[..., 1] > _check.ALBEDO_FLOOR_W_M2) & valid))

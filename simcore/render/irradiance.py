@@ -299,6 +299,37 @@ def _unit(v, name):
 
 # --------------------------------------------------------------------------- renderer
 
+def occluder_scene(mesh, mi):
+    """Return a Mitsuba scene of a ``trimesh.Trimesh`` (body frame, metres, satellite at the origin) that only
+    blocks rays (no materials), for ``scene.ray_test``; None for an empty mesh. ``mi``: the mitsuba module with
+    its variant set."""
+    if mesh is None or len(getattr(mesh, "faces", ())) == 0:
+        return None
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if not np.all(np.isfinite(v)):
+        raise ValueError("occluder mesh has non-finite vertices")
+    if np.abs(v).max() > 100.0:
+        raise ValueError("occluder mesh spans more than 100 m from the body origin; it must be the "
+                         "satellite in body axes, in metres, centred on the satellite")
+    m = mi.Mesh("occluders", len(v), len(f), has_vertex_normals=False, has_vertex_texcoords=False)
+    params = mi.traverse(m)
+    params["vertex_positions"] = host_array(mi.Float, v)
+    params["faces"] = host_array(mi.UInt32, f)
+    params.update()
+    return mi.load_dict({"type": "scene", "occluders": m})
+
+
+def rays_blocked(scene, origins, directions, mi):
+    """Return (M,) bool: whether each ray (origins, unit directions (M, 3), body frame) meets the occluders of
+    ``scene`` (:func:`occluder_scene`)."""
+    o = np.asarray(origins, dtype=np.float32).reshape(-1, 3)
+    d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
+    ray = mi.Ray3f(mi.Point3f(*(host_array(mi.Float, o[:, i]) for i in range(3))),
+                   mi.Vector3f(*(host_array(mi.Float, d[:, i]) for i in range(3))))
+    return np.asarray(scene.ray_test(ray).numpy(), bool)
+
+
 class Renderer:
     """A satellite scene ready to render diode irradiance along many epochs.
 
@@ -371,22 +402,7 @@ class Renderer:
 
     # -- scene
     def _build_scene(self, mesh):
-        mi = self._mi
-        if mesh is None or len(getattr(mesh, "faces", ())) == 0:
-            return None
-        v = np.asarray(mesh.vertices, dtype=np.float64)
-        f = np.asarray(mesh.faces, dtype=np.int64)
-        if not np.all(np.isfinite(v)):
-            raise ValueError("occluder mesh has non-finite vertices")
-        if np.abs(v).max() > 100.0:
-            raise ValueError("occluder mesh spans more than 100 m from the body origin; it must be the "
-                             "satellite in body axes, in metres, centred on the satellite")
-        m = mi.Mesh("occluders", len(v), len(f), has_vertex_normals=False, has_vertex_texcoords=False)
-        params = mi.traverse(m)
-        params["vertex_positions"] = host_array(mi.Float, v)
-        params["faces"] = host_array(mi.UInt32, f)
-        params.update()
-        return mi.load_dict({"type": "scene", "occluders": m})
+        return occluder_scene(mesh, self._mi)
 
     def _build_pt_scene(self, mesh):
         """Return the Mitsuba scene of the parts with their BSDFs (one mesh per part), or None when every
