@@ -116,3 +116,12 @@ def test_3u_wings_shade_and_reflect_and_the_check_leaves_their_shadows_out(tmp_p
     _, bad = check_run(forged)
     assert not bad["pass"]
     assert any(t["component"] == "direct" and not t["passed"] for t in bad["tests"])
+
+
+def test_the_shipped_user_mesh_example_loads_from_its_stl_file():
+    cfg = SatelliteConfig.load(EXAMPLES / "tilt0_fov90_baffle.toml")
+    (baffle,) = cfg.parts
+    # camera_baffle.stl: a tube of outer radius 15 mm, 40 mm tall, base at z = 0 (mm); moved to (15, 15, 113.5) mm
+    np.testing.assert_allclose(baffle.vertices_m.min(axis=0) * 1e3, [0.0, 0.0, 113.5], atol=1e-4)
+    np.testing.assert_allclose(baffle.vertices_m.max(axis=0) * 1e3, [30.0, 30.0, 153.5], atol=1e-4)
+    assert baffle.material == "anodised_aluminium" and baffle.source.endswith("camera_baffle.stl")
