@@ -45,10 +45,10 @@ CLOSE_DIRECTIONS = {"+x, above": (0.906, 0.0, 0.423), "+y, below": (0.0, 0.906, 
 
 # display colours (linear RGB) of the part kinds; a kind not listed (a user mesh's part) is drawn as "other"
 MATERIAL_RGB = {
-    "body": ((0.72, 0.73, 0.76), "body (aluminium)"),
+    "body": ((0.72, 0.73, 0.76), "body"),
     "ramp": ((0.90, 0.45, 0.05), "ramps"),
     "floor": ((0.45, 0.15, 0.60), "mount floors"),
-    "well": ((0.10, 0.10, 0.11), "aperture wells (black)"),
+    "well": ((0.10, 0.10, 0.11), "aperture wells"),
     "diode": ((0.10, 0.40, 1.00), "diodes (sensitive area)"),
 }
 OTHER_RGB = (0.85, 0.25, 0.65)
@@ -190,6 +190,26 @@ def _earth_colour_map(rmap):
 
     top = max(1.0, float(np.ceil(np.max(rmap.values) * 10.0) / 10.0))
     return matplotlib.colormaps["viridis"], matplotlib.colors.Normalize(0.0, top)
+
+
+def _material_name(material):
+    """Return a short name of a material (scenes.materials: a name, or a Mitsuba BSDF table)."""
+    return material if isinstance(material, str) else f"Mitsuba {material.get('type', 'BSDF')}"
+
+
+def _legend_label(kind, config):
+    """Return the legend label of a kind of part, with the material the configuration gives it (the display
+    colour tells the kinds apart; the material is what the renderer reflects light with)."""
+    if kind == "body":
+        return f"body ({_material_name(config.body.material)})"
+    if kind in ("ramp", "floor", "well"):
+        return f"{MATERIAL_RGB[kind][1]} ({_material_name(config.mount.material)})"
+    if kind in MATERIAL_RGB:
+        return MATERIAL_RGB[kind][1]
+    parts = [p for p in config.parts if kind in ("part", f"part_{p.name}")]
+    if parts:
+        return "parts: " + ", ".join(f"{p.name} ({_material_name(p.material)})" for p in parts)
+    return kind
 
 
 def _satellite_rgb(passes):
@@ -399,8 +419,8 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
              bbox=dict(facecolor="black", alpha=0.6, edgecolor="none", pad=2))
     kinds = [k for k in MATERIAL_RGB if any((p.passes.kind == k).any() for p in panels)]
     others = sorted({k for p in panels for k in np.unique(p.passes.kind)} - set(MATERIAL_RGB) - {"", "earth"})
-    handles = [Patch(color=srgb8(MATERIAL_RGB[k][0]) / 255.0, label=MATERIAL_RGB[k][1]) for k in kinds]
-    handles += [Patch(color=srgb8(OTHER_RGB) / 255.0, label=k) for k in others]
+    handles = [Patch(color=srgb8(MATERIAL_RGB[k][0]) / 255.0, label=_legend_label(k, config)) for k in kinds]
+    handles += [Patch(color=srgb8(OTHER_RGB) / 255.0, label=_legend_label(k, config)) for k in others]
     if handles:
         leg = fig.legend(handles=handles, loc="upper center" if close_up else "upper left", fontsize=fs * 0.8,
                          ncol=len(handles) if close_up else 1, frameon=True, framealpha=0.6,
