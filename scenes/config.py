@@ -255,6 +255,10 @@ def _build_part(index, table, base_dir, where):
         if not np.isfinite(angle):
             raise ConfigError(f"{here}: the hinge needs angle_deg, a finite number of degrees (the deployed angle)")
         verts = (verts - point) @ _rotation_axis_angle(axis, angle).T + point
+    reach = float(np.max(np.linalg.norm(verts, axis=1)))
+    if reach > PART_EXTENT_RANGE_M[1]:
+        raise ConfigError(f"{here}: once placed, the part reaches {reach:.4g} m from the body centre, beyond the "
+                          f"{PART_EXTENT_RANGE_M[1]:g} m a spacecraft part may; translate_mm and point_mm are in mm")
     material = check_material(table.get("material", DEFAULT_MATERIAL), f"{here} material")
     return Part(name=name, vertices_m=verts, faces=faces, material=material, source=source)
 

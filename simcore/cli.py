@@ -219,12 +219,15 @@ def cmd_response(args):
     """The traced angular response of a configuration's diodes, beside cosine, eq. 4.15 and a fitted Kelly curve."""
     from pathlib import Path
     from simcore.errors import InvalidInputError
-    from simcore.studies.response import format_table, traced_response
+    from scenes.config import SatelliteConfig
+    from simcore.studies.response import check_request, format_table, traced_response
+    if args.plot is not None and Path(args.plot).suffix.lower() not in (".png", ".pdf"):
+        raise InvalidInputError(f"--plot {args.plot}: give a .png or .pdf file name")
+    cfg = SatelliteConfig.load(args.config)
+    check_request(cfg, args.diode, args.plane, args.step, args.samples, args.map_step)   # before any output
     if args.plot is not None:
-        if Path(args.plot).suffix.lower() not in (".png", ".pdf"):
-            raise InvalidInputError(f"--plot {args.plot}: give a .png or .pdf file name")
         _output_folder(str(Path(args.plot).parent), "--plot")
-    resp = traced_response(args.config, diodes=args.diode, plane=args.plane, step_deg=args.step,
+    resp = traced_response(cfg, diodes=args.diode, plane=args.plane, step_deg=args.step,
                            samples=args.samples, seed=args.seed, variant=args.variant, map_step_deg=args.map_step)
     if args.plot is not None:
         from simcore.plots import plot_angular_response, plot_response_hemisphere

@@ -74,6 +74,7 @@ def test_hinged_wing_of_the_3u_example_deploys_where_computed_by_hand():
      '[[part]]\nname = "a"\nbox_mm = [10, 10, 10]\ntranslate_mm = [-300, 0, 0]\n', None, "two parts share a name"),
     ('[[part]]\nbox_mm = [10, 10, 10]\nhinge = {axis = [0, 0, 0], angle_deg = 90}\n', None, "hinge axis"),
     ('[[part]]\nbox_mm = [10, 10, 10]\ntranlate_mm = [300, 0, 0]\n', None, "did you mean 'translate_mm'"),
+    ('[[part]]\nbox_mm = [10, 10, 10]\ntranslate_mm = [200000, 0, 0]\n', None, "reaches 200 m from the body"),
 ])
 def test_bad_parts_are_one_line_errors_before_any_output(tmp_path, capsys, monkeypatch, parts_toml, mesh, words):
     if mesh == "garbage":

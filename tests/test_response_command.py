@@ -65,6 +65,7 @@ def test_kelly_fit_recovers_a_known_factor(kappa):
     (["--samples", "1000"], "--samples must be 4 m^2"),
     (["--map-step", "0.1"], "--map-step must lie in"),
     (["--plot", "out.txt"], "give a .png or .pdf"),
+    (["--diode", "14", "--plot", "sub/x.png"], "--diode 14 does not exist"),     # the plot folder is not made
 ])
 def test_bad_input_is_one_line_and_nothing_is_written(capsys, tmp_path, monkeypatch, argv, words):
     monkeypatch.chdir(tmp_path)

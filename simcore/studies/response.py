@@ -99,7 +99,8 @@ def fit_kelly(theta_deg, response, k_power=2.0):
     return k, fov, float(np.sqrt(res.fun))
 
 
-def _check(cfg, diodes, plane, step_deg, samples, map_step_deg):
+def check_request(cfg, diodes, plane, step_deg, samples, map_step_deg):
+    """Return the diode indices of a response request, or raise a one-line InvalidInputError."""
     if plane not in PLANES:
         raise InvalidInputError(f"--plane must be x (the diode's u-n plane) or y (its v-n plane), got {plane!r}")
     if not (np.isfinite(step_deg) and 0 < step_deg <= 45):
@@ -126,7 +127,7 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
     ``map_step_deg``, also the response over the diode's hemisphere on that grid; ``reflected_samples``
     (4 m^2) paths per diode and angle for the light the spacecraft reflects (when some part is not black)."""
     cfg = config if isinstance(config, SatelliteConfig) else SatelliteConfig.load(config)
-    idx = _check(cfg, diodes, plane, float(step_deg), samples, map_step_deg)
+    idx = check_request(cfg, diodes, plane, float(step_deg), samples, map_step_deg)
     all_ds = DiodeSurfaces.from_config(cfg)
     # only the chosen diodes receive light; every part of the satellite (all mounts) still blocks it
     ds = DiodeSurfaces(all_ds.positions_m[idx], all_ds.frames[idx], all_ds.sizes_m[idx],
