@@ -19,7 +19,7 @@ import pytest
 from scenes.config import SatelliteConfig
 from simcore.constants import R_EARTH_MEAN_M, R_SUN_M, AU_M
 from simcore.radiometry import response as _resp
-from simcore.radiometry.analytic import (BodyBox, _direct_response, _disc_directions, diode_irradiance,
+from simcore.radiometry.analytic import (BodyBox, _direct_response, disc_directions, diode_irradiance,
                                          solar_disc_offsets)
 from simcore.radiometry.response import CosineResponse, Eq415Response, ReflectionResponse
 from simcore.shapes.aperture import lit_rectangle
@@ -57,7 +57,7 @@ def _old_direct_visibility(apertures, frames, positions_m, panel_normals, d_body
 def _old_direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, earth_body_m=None, radius_m=None,
                          rings=3, refine_rings=11):
     offsets = solar_disc_offsets(sun_angular_radius_rad, rings) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
-    dirs = _disc_directions(sun_body, offsets)
+    dirs = disc_directions(sun_body, offsets)
     weights = np.ones(dirs.shape[:2])
     if earth_body_m is not None and len(dirs) > 1:
         along = np.einsum("mnj,nj->mn", dirs, earth_body_m)
@@ -71,7 +71,7 @@ def _old_direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, 
     kink = np.zeros(resp.shape[1:], bool)
     if len(dirs) > 1 and refine_rings > rings:
         ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
-        rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
+        rim = disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
         probe = np.concatenate([dirs, rim])
         for k, (r, f) in enumerate(zip(resps, frames)):
             pr = r.response(probe @ f.T)
@@ -170,7 +170,7 @@ def _dense_disc(sun, frames, resps, body, rings=40, radius=SUN_RADIUS):
     off = solar_disc_offsets(radius, rings)
     ang = 2 * np.pi * np.arange(64) / 64
     rim = radius * np.column_stack([np.cos(ang), np.sin(ang)])
-    d = _disc_directions(sun, np.concatenate([off, rim]))
+    d = disc_directions(sun, np.concatenate([off, rim]))
     resp = np.stack([r.response(d @ f.T) for r, f in zip(resps, frames)], axis=2)
     v = _old_direct_visibility(resps, frames, body.positions_m, body.panel_normals, d.reshape(-1, 3),
                                body.half_m).reshape(resp.shape)
@@ -231,7 +231,7 @@ def test_pairwise_direct_equals_the_previous_code_on_every_edge(config, rng):
 
     # The cases did reach every branch: lit and dark pairs, kinks refined, the box's shadow edges.
     assert 0.1 < np.mean(old > 0) < 0.9
-    dirs = _disc_directions(sun, solar_disc_offsets(SUN_RADIUS))
+    dirs = disc_directions(sun, solar_disc_offsets(SUN_RADIUS))
     resp = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2)
     straddling = (resp > 0).any(axis=0) & (resp == 0).any(axis=0)
     assert straddling.sum() > 100
@@ -254,7 +254,7 @@ def test_pairwise_direct_with_other_responses(rng):
     sun = _hard_directions(cfg, rng, n_each=8)
     earth = _earth_cutting_the_disc(sun, rng)
     off = solar_disc_offsets(SUN_RADIUS, 40)
-    dirs = _disc_directions(sun, off)
+    dirs = disc_directions(sun, off)
     dense = np.stack([r.response(dirs @ f.T) for r, f in zip(resps, frames)], axis=2).mean(axis=0) \
         / np.mean(1 / np.sqrt(1 + np.sum(off ** 2, axis=1)))
     horizon = np.abs(sun @ frames[:, 2].T) < np.sin(SUN_RADIUS)

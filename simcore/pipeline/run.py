@@ -27,7 +27,7 @@ from scenes.config import SatelliteConfig
 from scenes.meshes import build_satellite_mesh
 from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
-from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance
+from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
 from simcore.shapes.occlusion import box_hit
 from simcore.render.irradiance import DiodeSurfaces, Renderer, occluder_scene, rays_blocked
 
@@ -217,26 +217,26 @@ class PreparedRun:
             return np.zeros((n, K), bool)
         s = g.sun_dir_body[sl]
         ok = np.all(np.isfinite(s), axis=1)
+        s = np.where(ok[:, None], s, [[0.0, 0.0, 1.0]])                 # (invalid epochs: any direction, masked)
         a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
-        helper = np.where(np.abs(s[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-        e1 = np.cross(s, helper)
-        e1 /= np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-30)
-        e2 = np.cross(s, e1)
         ang = 2 * np.pi * np.arange(16) / 16
-        dirs = np.concatenate([s[:, None], s[:, None] + a * (np.cos(ang)[None, :, None] * e1[:, None]
-                                                             + np.sin(ang)[None, :, None] * e2[:, None])], axis=1)
-        dirs /= np.linalg.norm(dirs, axis=2, keepdims=True)                             # (n, 17, 3)
+        offsets = np.vstack([[0.0, 0.0], a * np.column_stack([np.cos(ang), np.sin(ang)])])
+        dirs = np.swapaxes(disc_directions(s, offsets), 0, 1)                      # (n, 17, 3)
         f = np.linspace(-0.5, 0.5, 3)
         F = np.asarray(cfg.frames)
         sizes = np.array([[d.aperture.diode_x_m, d.aperture.diode_y_m] for d in cfg.diodes])
         U, V = sizes[:, :1] * F[:, 0], sizes[:, 1:] * F[:, 1]                           # (K, 3) each
         pts = (np.asarray(cfg.positions_m)[:, None, None] + f[None, :, None, None] * U[:, None, None]
                + f[None, None, :, None] * V[:, None, None]).reshape(K, 9, 3)
-        o = np.broadcast_to(pts[None, :, :, None], (n, K, 9, 17, 3))
-        d = np.broadcast_to(dirs[:, None, None], (n, K, 9, 17, 3))
-        front = np.einsum("nj,kj->nk", np.where(ok[:, None], s, 0.0), F[:, 2]) > -a
-        hit = rays_blocked(self._parts_scene, o.reshape(-1, 3), d.reshape(-1, 3), _llvm.import_mitsuba())
-        return hit.reshape(n, K, 9 * 17).any(axis=2) & front & ok[:, None]
+        # only pairs with part of the Sun in front of the diode can be lit, hence shaded
+        e, k = np.nonzero((np.einsum("nj,kj->nk", s, F[:, 2]) > -a) & ok[:, None])
+        out = np.zeros((n, K), bool)
+        if e.size:
+            o = np.broadcast_to(pts[k][:, :, None], (e.size, 9, 17, 3))
+            d = np.broadcast_to(dirs[e][:, None], (e.size, 9, 17, 3))
+            hit = rays_blocked(self._parts_scene, o.reshape(-1, 3), d.reshape(-1, 3), _llvm.import_mitsuba())
+            out[e, k] = hit.reshape(e.size, 9 * 17).any(axis=1)
+        return out
 
     @functools.cached_property
     def visibility(self):

@@ -97,6 +97,7 @@ class DirectionVisibility:
                              f"half {self.half.shape}")
         object.__setattr__(self, "mask", m)
 
+    @functools.cached_property
     def compact(self):
         """Return (slots (K, n_theta n_phi) uint32, fine (S + 1, sub, sub), half (S + 1, sub/2, sub/2), sub): per
         diode and cell 0 where unmarked, else the marked cell's slot in ``fine`` and ``half``, which hold the
@@ -280,7 +281,7 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
     cos_in = np.einsum("ij,ij->i", sun_unit[ep], n)
     w = refl.weights_m2[row, col] * np.maximum(cos_in, 0.0) * np.maximum(cos_out, 0.0) * inv_d ** 2
     e_body = np.einsum("nij,nj->ni", R_body_from_ecef[ep], -v * inv_d[:, None])
-    comp = None if visibility is None else visibility.compact()
+    comp = None if visibility is None else visibility.compact
     for k in range(K):
         d_diode = e_body @ frames[k].T
         a0 = responses[k].response(d_diode)
@@ -411,7 +412,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
                 alt.append(out[2])
         return (t + 1, *new, *part, *alt)
 
-    comp = None if visibility is None else visibility.compact()
+    comp = None if visibility is None else visibility.compact
     n_acc = K if comp is None else 3 * K
     if comp is not None:
         nt, nph = visibility.mask.shape[1:]
@@ -473,7 +474,7 @@ def solar_disc_offsets(radius_rad, rings=3):
     return np.array(pts)
 
 
-def _disc_directions(sun_body, offsets):
+def disc_directions(sun_body, offsets):
     """Return (M, N, 3) unit directions across the solar disc around each Sun direction (N, 3)."""
     s = sun_body
     helper = np.where(np.abs(s[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
@@ -494,7 +495,7 @@ def _disc_sample(sun_body, sun_angular_radius_rad, rings, earth_body_m=None, rad
     each Sun direction, their weights (over the part the Earth leaves visible, normalised, divided by the
     points' mean cos(alpha)) and whether the Earth's limb crosses the disc's points."""
     offsets = solar_disc_offsets(sun_angular_radius_rad, rings) if sun_angular_radius_rad > 0 else np.zeros((1, 2))
-    dirs = _disc_directions(sun_body, offsets)
+    dirs = disc_directions(sun_body, offsets)
     weights = np.ones(dirs.shape[:2])                                      # (M, N)
     if earth_body_m is not None and len(dirs) > 1:
         along = np.einsum("mnj,nj->mn", dirs, earth_body_m)
@@ -597,7 +598,7 @@ def _edge_mean(sun_body, radius_rad, diode, frames, resps, body, steady=None):
     does not cut); ``steady`` (T,): the visibility where it is known not to vary over the disc (NaN: trace
     it at every point)."""
     off, w = _polar_disc_offsets(radius_rad)
-    d = _disc_directions(sun_body, off)                                       # (M, T, 3)
+    d = disc_directions(sun_body, off)                                       # (M, T, 3)
     wt = np.broadcast_to(w[:, None], d.shape[:2])
     cos_alpha = 1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))
     wt = wt / wt.sum(axis=0) / float(np.sum(w * cos_alpha))
@@ -659,7 +660,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     edge_probe = None
     if len(dirs) > 1:
         ang = 2.0 * np.pi * np.arange(32) / 32
-        edge_probe = _disc_directions(sun_body, 0.999 * sun_angular_radius_rad
+        edge_probe = disc_directions(sun_body, 0.999 * sun_angular_radius_rad
                                       * np.column_stack([np.cos(ang), np.sin(ang)]))[:, ep]
     out[ep, diode], edge, steady, inside = _disc_mean(d, weights[:, ep], resp, diode, frames, resps, body, rings,
                                                       edge_probe)
@@ -684,7 +685,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         ep, diode, lit, resp, inside = ep[~edge], diode[~edge], lit[:, ~edge], resp[:, ~edge], inside[~edge]
     # Kinks: probe the disc's very edge too (the quadrature rings stop short of it).
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
-    rim = _disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
+    rim = disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
     lit_rim, resp_rim = _pair_response(resps, frames, diode, rim[:, ep])
     lit_any = (resp > 0).any(axis=0) | (resp_rim > 0).any(axis=0)
     kink = lit_any & ((resp == 0).any(axis=0) | (resp_rim == 0).any(axis=0) | partial_earth[ep])
