@@ -356,22 +356,30 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             return (acc + wt * a,)
         part, alt = more
         if marked[k]:
-            # the cells of _fine_index: theta from the normal, azimuth from u
-            th = dr.acos(dr.clip(dn, 0.0, 1.0))
-            ph = dr.atan2(dv, du) + np.pi
-            fi = dr.minimum(UInt32(th * (2.0 * nt * sub / np.pi)), nt * sub - 1)
-            fj = dr.minimum(UInt32(ph * (nph * sub / _TWO_PI)), nph * sub - 1)
-            slot = dr.gather(UInt32, slots, (fi // sub) * nph + fj // sub + k * nt * nph)
-            mark = slot > 0
-            ri, rj = fi % sub, fj % sub
-            f_share = dr.gather(F, fine, slot * (sub * sub) + ri * sub + rj, mark)
-            h_share = dr.gather(F, half, slot * (h * h) + (ri // 2) * h + rj // 2, mark)
-            part = part + wt * dr.select(mark, a0, 0.0)
-            alt = alt + wt * dr.select(mark, a0 * h_share, a)
-            a = dr.select(mark, a0 * f_share, a)
+            # the marked cells lie beyond the diode's first marked row (angle from the normal): a packet of
+            # lanes nearer the normal skips the angles and lookups (a branch in the kernel)
+            part, alt, a = dr.if_stmt(args=(k, a0, a, wt, du, dv, dn, part, alt), cond=dn < marked_cos[k],
+                                      true_fn=_marked_share, false_fn=_unmarked_share)
         else:
             alt = alt + wt * a
         return acc + wt * a, part, alt
+
+    def _marked_share(k, a0, a, wt, du, dv, dn, part, alt):
+        # the cells of _fine_index: theta from the normal, azimuth from u
+        th = dr.acos(dr.clip(dn, 0.0, 1.0))
+        ph = dr.atan2(dv, du) + np.pi
+        fi = dr.minimum(UInt32(th * (2.0 * nt * sub / np.pi)), nt * sub - 1)
+        fj = dr.minimum(UInt32(ph * (nph * sub / _TWO_PI)), nph * sub - 1)
+        slot = dr.gather(UInt32, slots, (fi // sub) * nph + fj // sub + k * nt * nph)
+        mark = slot > 0
+        ri, rj = fi % sub, fj % sub
+        f_share = dr.gather(F, fine, slot * (sub * sub) + ri * sub + rj, mark)
+        h_share = dr.gather(F, half, slot * (h * h) + (ri // 2) * h + rj // 2, mark)
+        return (part + wt * dr.select(mark, a0, 0.0), alt + wt * dr.select(mark, a0 * h_share, a),
+                dr.select(mark, a0 * f_share, a))
+
+    def _unmarked_share(k, a0, a, wt, du, dv, dn, part, alt):
+        return part, alt + wt * a, a
 
     def _no_term(a0, wt, bx, by, bz, du, dv, dn, *acc):
         return acc
@@ -416,10 +424,14 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     n_acc = K if comp is None else 3 * K
     if comp is not None:
         nt, nph = visibility.mask.shape[1:]
+        sub, h = comp[3], comp[3] // 2
         marked = visibility.mask.reshape(K, -1).any(axis=1)
+        # per diode, the cosine of the upper edge of its first marked row, widened by one fine row for
+        # float32 rounding of the angle (1.0 where nothing is marked)
+        first_row = np.array([np.argmax(m.any(axis=1)) if m.any() else 0 for m in visibility.mask])
+        marked_cos = np.minimum(np.cos(np.maximum(first_row * sub - 1, 0) * (0.5 * np.pi / (nt * sub))), 1.0).tolist()
         slots = _llvm.host_array(UInt32, comp[0])
         fine, half = table(comp[1]), table(comp[2])
-        sub, h = comp[3], comp[3] // 2
     state = (dr.zeros(UInt32, n_lanes), *[dr.zeros(F, n_lanes) for _ in range(n_acc)])
     _, *acc = dr.while_loop(state=state, cond=cond, body=body)
     dr.eval(*acc)
