@@ -8,6 +8,7 @@ same options it continues from its last finished chunk and ends with exactly
 the numbers of an uninterrupted run (the renderer's random numbers are keyed
 by the global epoch index, not by the chunk).
 """
+import concurrent.futures
 import dataclasses
 import functools
 import datetime as _dt
@@ -269,9 +270,10 @@ class PreparedRun:
             out[k] = grown | np.roll(grown, 1, axis=1) | np.roll(grown, -1, axis=1)
         return out
 
-    def analytic(self, sl, reflectivity_map, direct=True, mesh=False):
+    def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True):
         """Return the analytic irradiance of epochs ``sl`` on ``reflectivity_map``; ``mesh``: the albedo with
-        the traced :attr:`visibility` where shadows cross the diodes (the check's reference)."""
+        the traced :attr:`visibility` where shadows cross the diodes (the check's reference). The direct Sun
+        alone (``albedo=False``) is numpy only: it may run in another thread while Dr.Jit renders."""
         g = self.geometry
         return diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
                                 self.config.frames, self.config.apertures, map=reflectivity_map,
@@ -279,13 +281,22 @@ class PreparedRun:
                                 eclipse="conical" if self.opts.sun_disc else "cylindrical",
                                 body=BodyBox.from_config(self.config),
                                 sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
+                                albedo=albedo, backend="auto" if albedo else "numpy",
                                 visibility=self.visibility if mesh else None)
+
+    @functools.cached_property
+    def _reference_worker(self):
+        """Return the one worker thread that computes the direct reference (numpy, which releases the GIL
+        in its loops) while the main thread renders: on few cores it fills the core that the renderer's
+        Python parts leave idle."""
+        return concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="sunsim-direct-reference")
 
     def render_chunk(self, start, stop):
         """Return the arrays of epochs [start, stop): rendered and analytic irradiance, and the check's
         second, hint-free direct estimate on its share of the epochs (NaN elsewhere)."""
         o, g, sl = self.opts, self.geometry, slice(start, stop)
         valid = g.valid[sl]
+        direct_ref = self._reference_worker.submit(self.analytic, sl, self.map, albedo=False)
         args = (g.sun_dir_body[sl], g.earth_center_body_m[sl], g.R_ecef_from_body[sl], self.sun_scale(sl))
         res = self.renderer.render(
             *args, sun_dir_earth_body=self.earth_sun_dir_body(sl), earth_sun_scale=self.earth_sun_scale(sl),
@@ -298,8 +309,9 @@ class PreparedRun:
                                        albedo=False, hint=False, reflected=False,
                                        direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
             plain[pick] = np.stack([sub.direct_w_m2, sub.direct_se_w_m2, sub.direct_dof], axis=-1)
-        native = self.analytic(sl, self.map)
+        native_albedo = self.analytic(sl, self.map, direct=False).albedo_w_m2
         fine = self.analytic(sl, self.map_refined, direct=False, mesh=True)
+        native_direct = direct_ref.result().direct_w_m2
         out = {
             "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2, res.reflected_w_m2], axis=-1),
             "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2, res.reflected_se_w_m2], axis=-1),
@@ -307,7 +319,7 @@ class PreparedRun:
             "samples": np.stack([res.direct_samples, res.albedo_samples, res.reflected_samples],
                                 axis=-1).astype(np.int64),
             "direct_plain": plain,
-            "analytic": np.stack([native.direct_w_m2, native.albedo_w_m2], axis=-1),
+            "analytic": np.stack([native_direct, native_albedo], axis=-1),
             "analytic_albedo_refined": fine.albedo_w_m2,
             "albedo_mesh": fine.albedo_mesh_w_m2,
             "albedo_visibility_error": fine.albedo_visibility_error_w_m2,
