@@ -285,18 +285,18 @@ class PreparedRun:
                                 visibility=self.visibility if mesh else None)
 
     @functools.cached_property
-    def _reference_worker(self):
+    def worker(self):
         """Return the one worker thread that computes the direct reference (numpy, which releases the GIL
-        in its loops) while the main thread renders: on few cores it fills the core that the renderer's
-        Python parts leave idle."""
-        return concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="sunsim-direct-reference")
+        in its loops) and writes finished chunks while the main thread renders: on few cores it fills the
+        core that the renderer's Python parts leave idle. Nothing it runs touches Dr.Jit."""
+        return concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="sunsim-worker")
 
     def render_chunk(self, start, stop):
         """Return the arrays of epochs [start, stop): rendered and analytic irradiance, and the check's
         second, hint-free direct estimate on its share of the epochs (NaN elsewhere)."""
         o, g, sl = self.opts, self.geometry, slice(start, stop)
         valid = g.valid[sl]
-        direct_ref = self._reference_worker.submit(self.analytic, sl, self.map, albedo=False)
+        direct_ref = self.worker.submit(self.analytic, sl, self.map, albedo=False)
         args = (g.sun_dir_body[sl], g.earth_center_body_m[sl], g.R_ecef_from_body[sl], self.sun_scale(sl))
         res = self.renderer.render(
             *args, sun_dir_earth_body=self.earth_sun_dir_body(sl), earth_sun_scale=self.earth_sun_scale(sl),
@@ -620,12 +620,20 @@ def _render_and_write(study, store, progress, log):
     from tqdm import tqdm
     bar = tqdm(total=n, initial=sum(b - a for a, b in done), unit="epoch",
                disable=(not sys.stderr.isatty()) if progress is None else not progress, desc="rendering")
+    pending = None          # the chunk being written by the worker thread while the next one renders
     try:
         for start, stop in todo:
-            store.save(start, stop, study.render_chunk(start, stop))
+            data = study.render_chunk(start, stop)
+            if pending is not None:
+                pending.result()
+            pending = study.worker.submit(store.save, start, stop, data)
             bar.update(stop - start)
     finally:
+        if pending is not None:
+            concurrent.futures.wait([pending])     # a finished chunk is on disk before anything else happens
         bar.close()
+    if pending is not None:
+        pending.result()
     data = store.load_all(n)
     variant = study._renderer.variant if study._renderer is not None else study.variant
     ds, report = build_dataset(study, data, variant)
