@@ -1003,7 +1003,7 @@ class Renderer:
         TH, PH = np.meshgrid(th, ph, indexing="ij")
         local = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)    # (NT, NP, 3)
         out = np.zeros((K, _VIS_NT, _VIS_NP))
-        g = np.array([1e-3, 0.5, 1.0 - 1e-3])
+        jobs = []
         for k in range(K):
             if self.control_variate:
                 x0, x1, y0, y1, lit = lit_rectangle(*self._ap_params[k], local[..., 0], local[..., 1], local[..., 2])
@@ -1012,15 +1012,17 @@ class Renderer:
                 x1, y1, lit = -x0, -y0, np.ones(TH.shape)
             ok = (lit > 0) & (x1 - x0 > 2e-3) & (y1 - y0 > 2e-3)
             out[k][~ok] = np.nan
-            if self._scene is None or not ok.any():
-                continue
-            fx = (x0[ok][:, None, None] + (x1 - x0)[ok][:, None, None] * g[:, None]) + 0 * g[None, :]
-            fy = (y0[ok][:, None, None] + (y1 - y0)[ok][:, None, None] * g[None, :]) + 0 * g[:, None]
-            d = np.broadcast_to((local[ok] @ self.diodes.frames[k])[:, None, None], (*fx.shape, 3))
-            o = (self.diodes.positions_m[k] + fx[..., None] * self._diode_f32["U"][k]
-                 + fy[..., None] * self._diode_f32["V"][k])
-            hit = self._scene.ray_test(self._mi.Ray3f(self._v3(o.reshape(-1, 3)), self._v3(d.reshape(-1, 3))))
-            out[k][ok] = np.asarray(hit.numpy(), float).reshape(fx.shape).mean(axis=(1, 2))
+            if self._scene is not None and ok.any():
+                jobs.append((k, ok, np.stack([x0[ok], x1[ok], y0[ok], y1[ok]], -1), local[ok] @ self.diodes.frames[k]))
+        if jobs:
+            blocked = self._blocked_share_of(
+                np.concatenate([np.full(int(job[1].sum()), job[0]) for job in jobs]), np.concatenate([job[2] for job in jobs]),
+                np.concatenate([job[3] for job in jobs]), [1e-3, 0.5, 1.0 - 1e-3])
+            start = 0
+            for k, ok, _, _ in jobs:
+                n = int(ok.sum())
+                out[k][ok] = blocked[start:start + n]
+                start += n
         self._blocked = out
         return out
 
@@ -1030,11 +1032,11 @@ class Renderer:
         mesh leaves visible toward each cell's centre, on grids ``sub`` and ``sub / 2`` times finer
         ((K, 90 sub, 180 sub) and (K, 45 sub, 90 sub); NaN outside the mask). A deterministic quadrature:
         ``points`` x ``points`` midpoints of the lit part per direction (for
-        ``simcore.radiometry.analytic.DirectionVisibility``)."""
+        ``simcore.radiometry.analytic.DirectionVisibility``), traced in one launch for every diode and
+        both grids (the points are made and their hits averaged in the kernel)."""
         K = self.diodes.count
         mask = np.asarray(mask, bool)
-        g = (np.arange(points) + 0.5) / points
-        out = []
+        jobs, out = [], []
         for s_ in (sub, sub // 2):
             nt, nph = _VIS_NT * s_, _VIS_NP * s_
             share = np.full((K, nt, nph), np.nan)
@@ -1051,19 +1053,47 @@ class Renderer:
                 else:
                     x0, y0 = np.full(len(i), -0.5), np.full(len(i), -0.5)
                     x1, y1, lit = -x0, -y0, np.ones(len(i))
-                fx = x0[:, None, None] + (x1 - x0)[:, None, None] * g[:, None] + 0.0 * g[None, :]
-                fy = y0[:, None, None] + (y1 - y0)[:, None, None] * g[None, :] + 0.0 * g[:, None]
-                d = np.broadcast_to((local @ self.diodes.frames[k])[:, None, None], (*fx.shape, 3))
-                o = (self.diodes.positions_m[k] + fx[..., None] * self._diode_f32["U"][k]
-                     + fy[..., None] * self._diode_f32["V"][k])
-                if self._scene is None:
-                    free = np.ones(len(i))
-                else:
-                    hit = self._scene.ray_test(self._mi.Ray3f(self._v3(o.reshape(-1, 3)), self._v3(d.reshape(-1, 3))))
-                    free = 1.0 - np.asarray(hit.numpy(), float).reshape(fx.shape).mean(axis=(1, 2))
-                share[k, i, j] = np.where(lit > 0, free, 0.0)
+                jobs.append((share, k, i, j, lit, np.stack([x0, x1, y0, y1], -1), local @ self.diodes.frames[k]))
             out.append(share)
+        if not jobs:
+            return tuple(out)
+        if self._scene is None:
+            free = np.ones(sum(len(job[2]) for job in jobs))
+        else:
+            free = 1.0 - self._blocked_share_of(
+                np.concatenate([np.full(len(job[2]), job[1]) for job in jobs]), np.concatenate([job[5] for job in jobs]),
+                np.concatenate([job[6] for job in jobs]), (np.arange(points) + 0.5) / points)
+        start = 0
+        for share, k, i, j, lit, _, _ in jobs:
+            share[k, i, j] = np.where(lit > 0, free[start:start + len(i)], 0.0)
+            start += len(i)
         return tuple(out)
+
+    def _blocked_share_of(self, diode, rect, d_body, grid):
+        """Return (M,): for M (diode index, lit rectangle (x0, x1, y0, y1) in fractions of the diode's sides,
+        centred, body-frame direction) the share of the rectangle's points at fractions ``grid`` (P,) of its
+        sides along x times the same along y (P x P points) whose ray toward the direction the mesh blocks;
+        one Dr.Jit launch, the points made and their hits summed in the kernel."""
+        dr, mi = self._dr, self._mi
+        P = len(grid)
+        P2 = P * P
+        lane = dr.arange(mi.UInt32, len(diode) * P2)
+        m = lane // P2
+        q = lane - m * P2
+        g = host_array(mi.Float, np.asarray(grid, dtype=float))
+        gx = dr.gather(mi.Float, g, q // P)
+        gy = dr.gather(mi.Float, g, q % P)
+        r = [dr.gather(mi.Float, host_array(mi.Float, rect[:, c]), m) for c in range(4)]
+        fx = r[0] + (r[1] - r[0]) * gx
+        fy = r[2] + (r[3] - r[2]) * gy
+        kk = dr.gather(mi.UInt32, host_array(mi.UInt32, diode.astype(np.uint32)), m)
+        f = self._diode_f32
+        o = (self._gather3(self._v3(f["pos"]), kk) + fx * self._gather3(self._v3(f["U"]), kk)
+             + fy * self._gather3(self._v3(f["V"]), kk))
+        d = self._gather3(self._v3(d_body), m)
+        hit = self._scene.ray_test(mi.Ray3f(o, d))
+        blocked = dr.block_sum(dr.select(hit, 1.0, 0.0), P2)
+        return np.asarray(blocked.numpy(), dtype=float) / P2
 
     def _albedo_proposal(self, t):
         """Return per-task cap basis and bin CDF/PMF for the albedo sampling of tasks ``t``."""
