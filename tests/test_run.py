@@ -170,3 +170,35 @@ def test_an_attitude_file_with_another_time_origin_starts_at_the_run_start(tmp_p
     t = np.arange(50.0)
     np.testing.assert_allclose(study.geometry.R_gcrs_from_body[:, :, 0],
                                np.column_stack([np.cos(w * t), np.sin(w * t), np.zeros(50)]), atol=1e-12)
+
+
+def test_a_partial_run_of_an_older_chunk_layout_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
+    # A run interrupted after two chunks leaves them in OUT.partial; a chunk written by an older sunsim
+    # (here: one array removed) must not be mixed with new ones: one line, exit 2, nothing rendered.
+    from simcore import cli
+    from simcore.pipeline import run as R
+    out = str(tmp_path / "old.nc")
+    real, calls = R.PreparedRun.render_chunk, []
+
+    def stop_after_two(self, start, stop):
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        calls.append(start)
+        data = real(self, start, stop)
+        assert set(data) == set(R.CHUNK_ARRAYS)         # the layout the resume check expects
+        return data
+    monkeypatch.setattr(R.PreparedRun, "render_chunk", stop_after_two)
+    assert cli.main(SMALL + ["-o", out]) != 0                # "sunsim: interrupted"
+    chunks = sorted(f for f in os.listdir(out + ".partial") if f.startswith("chunk_"))
+    assert len(chunks) == 2
+    first = os.path.join(out + ".partial", chunks[0])
+    with np.load(first) as z:
+        arrays = {k: z[k] for k in z.files if k != "albedo_mesh"}
+    with open(first, "wb") as f:
+        np.savez(f, **arrays)
+    calls.clear()
+    capsys.readouterr()
+    assert cli.main(SMALL + ["-o", out]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "older sunsim" in err[0] and "albedo_mesh" in err[0], err
+    assert calls == [] and len(os.listdir(out + ".partial")) >= 2 and not os.path.exists(out)

@@ -329,6 +329,12 @@ class PreparedRun:
         return out
 
 
+# The arrays of a finished chunk (PreparedRun.render_chunk); a partial run whose chunks lack one was written
+# by an older sunsim and cannot be resumed by this one
+CHUNK_ARRAYS = ("rendered", "rendered_se", "rendered_dof", "samples", "direct_plain", "analytic",
+                "analytic_albedo_refined", "albedo_mesh", "albedo_visibility_error",
+                "direct_unchecked", "valid")
+
 PLAIN_CHECK_SHARE = 0.125     # share of the epochs whose direct Sun is rendered again without the aperture hint
 # ...with at least this many samples: with 64, a well's edge crosses a handful of strata and the hint-free
 # estimate's standard error is unreliable (a 4-epoch run read 22 sigma off with seed 7)
@@ -614,6 +620,11 @@ def _render_and_write(study, store, progress, log):
     opts = study.opts
     n = len(study.epochs)
     done = store.done()
+    if done:
+        missing = sorted(set(CHUNK_ARRAYS) - store.chunk_keys(*done[0]))
+        if missing:
+            raise InvalidInputError(f"{store.folder} holds a partial run written by an older sunsim (its chunks lack "
+                                    f"{', '.join(missing)}); delete that folder to start this run afresh")
     todo = missing_ranges(n, opts.chunk_epochs, done)
     if done:
         log(f"resuming: {sum(b - a for a, b in done)} of {n} epochs already in {store.folder}")

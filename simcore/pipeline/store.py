@@ -200,6 +200,11 @@ class ChunkStore:
                 out.append((int(m.group(1)), int(m.group(2))))
         return sorted(out)
 
+    def chunk_keys(self, start, stop):
+        """Return the set of array names in the finished chunk [start, stop)."""
+        with np.load(os.path.join(self.folder, f"chunk_{start:09d}_{stop:09d}.npz")) as z:
+            return set(z.files)
+
     def save(self, start, stop, arrays):
         """Store one finished chunk (a dict of numpy arrays) atomically."""
         path = os.path.join(self.folder, f"chunk_{start:09d}_{stop:09d}.npz")
