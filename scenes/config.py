@@ -29,6 +29,7 @@ import numpy as np
 from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture, diode_frame
 from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
+from simcore.shapes.window import INDEX_RANGE, Window
 from simcore.errors import InvalidInputError
 from scenes.materials import DEFAULT as DEFAULT_MATERIAL, check_material
 
@@ -41,8 +42,9 @@ MM = 1e-3
 BODY_DEFAULTS = {"size_mm": [100.0, 100.0, 227.0], "rail_mm": 8.5, "clearance_mm": 9.0, "material": "black"}
 MOUNT_DEFAULTS = {"wall_mm": 0.5, "floor_mm": 0.5, "base_mm": 0.5, "material": "black"}
 LAYOUT_DEFAULTS = {"pattern": None, "tilt_deg": None, "fov_deg": None, "extra_flat_diodes": False,
-                   "triangle_mm": [22.0, 40.0], "extra_offset_mm": 25.0}
-DIODE_KEYS = ("name", "panel", "normal", "az_deg", "el_deg", "at_mm", "fov_deg", "well")
+                   "triangle_mm": [22.0, 40.0], "extra_offset_mm": 25.0, "window": None}
+DIODE_KEYS = ("name", "panel", "normal", "az_deg", "el_deg", "at_mm", "fov_deg", "well", "window")
+WINDOW_KEYS = ("index", "thickness_mm", "gap_mm", "size_mm", "absorption_per_mm")
 WELL_KEYS = ("height_mm", "opening_mm")
 TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part")
 PART_KEYS = ("name", "file", "unit", "box_mm", "translate_mm", "rotate_deg", "hinge", "material")
@@ -321,6 +323,7 @@ class MountedDiode:
     fov_deg: float
     panel: str
     at_m: np.ndarray  # (lateral, along) position of the mount's foot on the panel, metres
+    window: Window = None  # a cover glass / filter over the diode (simcore.shapes.window), or None
 
     def mount_corners_m(self, mount):
         """Return (floor_bottom (4, 3), wall_top (4, 3)) outer corners of the mount (body frame, m).
@@ -429,6 +432,9 @@ def expand_layout(layout, where="[layout]"):
         for panel, z in (("+z", 1.0), ("-z", -1.0)):
             tables.append({"name": f"{panel}#2", "panel": panel, "normal": [0.0, 0.0, z], "at_mm": [0.0, off],
                            "fov_deg": fov})
+    if layout.get("window") is not None:
+        for t in tables:
+            t["window"] = layout["window"]
     return tables
 
 
@@ -465,13 +471,59 @@ def _build_diode(index, table, body, mount):
     if at.shape != (2,) or not np.all(np.isfinite(at)):
         raise ConfigError(f"{where}: at_mm must be [lateral, along] in mm on the panel, got {table.get('at_mm')!r}")
     aperture, fov = _aperture_for(table.get("fov_deg"), table.get("well"), where)
+    window = _window_for(table.get("window"), aperture, where)
     frame = diode_frame(n)
     at_m = at * MM
     centre = _place(frame, panel, at_m, aperture, body, mount)
     for arr in (n, frame, at_m, centre):
         arr.flags.writeable = False
     return MountedDiode(index=index, name=str(table.get("name", f"d{index}")), normal_body=n, frame_body=frame,
-                 position_body_m=centre, aperture=aperture, fov_deg=fov, panel=panel, at_m=at_m)
+                 position_body_m=centre, aperture=aperture, fov_deg=fov, panel=panel, at_m=at_m, window=window)
+
+
+def _window_for(table, aperture, where):
+    """Return the :class:`simcore.shapes.window.Window` of a diode's ``window`` table (None without one), or raise
+    a one-line ConfigError: keys, finite numbers, index in (1, 4], thickness > 0, gap >= 0 and on or above the
+    well's rim, a footprint that covers the well's opening (hence the diode), absorption >= 0."""
+    if table is None:
+        return None
+    w = f"{where} window"
+    if not isinstance(table, dict):
+        raise ConfigError(f"{w}: give a table {{index = 1.5, thickness_mm = 1.0, gap_mm = 0.5, size_mm = [40, 40]}}")
+    _check_keys(table, WINDOW_KEYS, w)
+    missing = [k for k in WINDOW_KEYS[:4] if k not in table]
+    if missing:
+        raise ConfigError(f"{w}: give {', '.join(missing)} (index, thickness_mm, gap_mm, size_mm = [u, v]; "
+                          "absorption_per_mm is optional, default 0)")
+    try:
+        vals = {k: float(table[k]) for k in ("index", "thickness_mm", "gap_mm")}
+        vals["absorption_per_mm"] = float(table.get("absorption_per_mm", 0.0))
+        size = [float(x) for x in table["size_mm"]]
+    except (TypeError, ValueError):
+        raise ConfigError(f"{w}: index, thickness_mm, gap_mm and absorption_per_mm must be numbers and size_mm "
+                          f"two numbers [u, v] in mm; got {table!r}") from None
+    if len(size) != 2 or not np.all(np.isfinite([*vals.values(), *size])):
+        raise ConfigError(f"{w}: every value must be a finite number and size_mm two of them [u, v]; got {table!r}")
+    lo, hi = INDEX_RANGE
+    if not lo < vals["index"] <= hi:
+        raise ConfigError(f"{w}: index must lie in ({lo:g}, {hi:g}] (glass 1.5, sapphire 1.77), got {vals['index']:g}")
+    if vals["thickness_mm"] <= 0:
+        raise ConfigError(f"{w}: thickness_mm must be > 0, got {vals['thickness_mm']:g}")
+    if vals["gap_mm"] < 0:
+        raise ConfigError(f"{w}: gap_mm (diode surface to the window's lower face) must be >= 0, got {vals['gap_mm']:g}")
+    if vals["gap_mm"] * MM < aperture.height_m - 1e-12:
+        raise ConfigError(f"{w}: gap_mm {vals['gap_mm']:g} puts the window inside the diode's well "
+                          f"({aperture.height_m / MM:.3f} mm tall); the window sits on or above the well's rim: "
+                          f"use gap_mm >= {aperture.height_m / MM:.3f}")
+    if vals["absorption_per_mm"] < 0:
+        raise ConfigError(f"{w}: absorption_per_mm must be >= 0 (1/mm), got {vals['absorption_per_mm']:g}")
+    need = (aperture.opening_x_m / MM, aperture.opening_y_m / MM)
+    if size[0] < need[0] - 1e-9 or size[1] < need[1] - 1e-9:
+        raise ConfigError(f"{w}: size_mm {size} does not cover the diode's "
+                          f"{'well opening' if aperture.height_m > 0 else 'sensitive area'} "
+                          f"({need[0]:.3f} x {need[1]:.3f} mm); give size_mm at least that large")
+    return Window(index=vals["index"], thickness_m=vals["thickness_mm"] * MM, gap_m=vals["gap_mm"] * MM,
+                  size_m=(size[0] * MM, size[1] * MM), absorption_per_m=vals["absorption_per_mm"] / MM)
 
 
 def _footprint(diode, body, mount):
@@ -495,10 +547,17 @@ def _convex_overlap(poly_a, poly_b):
 
 
 def mount_height_m(diode, body, mount):
-    """Return the height of a diode's mount (ramp + floor + well) above its panel (m)."""
+    """Return the height of a diode's mount (ramp + floor + well, and its window) above its panel (m)."""
     p, _, _ = panel_axes(diode.panel)
     bottom, top = diode.mount_corners_m(mount)
-    return float(np.max((np.vstack([bottom, top]) - body.panel_centre_m(diode.panel)) @ p))
+    pts = [bottom, top]
+    if diode.window is not None:
+        u, v, n = diode.frame_body
+        w = diode.window
+        hx, hy = np.array(w.size_m) / 2
+        sq = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+        pts.append(diode.position_body_m + (w.gap_m + w.thickness_m) * n + sq[:, :1] * hx * u + sq[:, 1:] * hy * v)
+    return float(np.max((np.vstack(pts) - body.panel_centre_m(diode.panel)) @ p))
 
 
 def _validate_mounts(diodes, body, mount):
@@ -661,6 +720,11 @@ class SatelliteConfig:
     @property
     def apertures(self):
         return tuple(d.aperture for d in self.diodes)
+
+    @property
+    def windows(self):
+        """Return the diodes' windows (K,) (:class:`simcore.shapes.window.Window` or None each)."""
+        return tuple(d.window for d in self.diodes)
 
     def mount_heights_m(self):
         """Return the height of every mount above its panel (K,), m."""

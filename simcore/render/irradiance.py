@@ -126,6 +126,7 @@ _MAX_LANES = 1 << 22      # lanes per launch (memory bound, ~100 MB of temporari
 # probe rays toward the disc's centre and this many points on its rim, and this many times the samples.
 _PROBE_RIM = 32
 _EDGE_BOOST = 16
+_WINDOW_KEY = 0x5BD1E995   # xor-ed into a lane's key: the window's own random numbers (the kernels' stay as they were)
 
 
 # --------------------------------------------------------------------------- variants
@@ -180,13 +181,17 @@ class DiodeSurfaces:
     ``positions_m`` (K, 3): centre of each sensitive surface; ``frames`` (K, 3, 3):
     rows (u, v, n), n the outward normal; ``sizes_m`` (K, 2): sides along u and v.
     ``apertures``: optional sequence of K ``simcore.shapes.aperture.WellAperture`` used only
-    to shape the albedo sampling (the traced mesh decides what is blocked).
+    to shape the albedo sampling (the traced mesh decides what is blocked). ``windows``: optional
+    sequence of K ``simcore.shapes.window.Window`` or None (a cover glass over the diode, traced per
+    sample: :meth:`Renderer._through_window`); None, or all None: no window anywhere (the kernels
+    then run exactly the code they ran before windows existed).
     """
 
     positions_m: np.ndarray
     frames: np.ndarray
     sizes_m: np.ndarray
     apertures: tuple = None
+    windows: tuple = None
 
     def __post_init__(self):
         p = np.asarray(self.positions_m, dtype=float)
@@ -213,6 +218,11 @@ class DiodeSurfaces:
         object.__setattr__(self, "sizes_m", s)
         if self.apertures is not None:
             object.__setattr__(self, "apertures", tuple(self.apertures))
+        if self.windows is not None:
+            if len(self.windows) != k:
+                raise ValueError(f"windows must list one Window or None per diode ({k}), got {len(self.windows)}")
+            object.__setattr__(self, "windows", None if all(w is None for w in self.windows)
+                               else tuple(self.windows))
 
     @property
     def count(self):
@@ -228,7 +238,15 @@ class DiodeSurfaces:
             ap = config.aperture
         aps = tuple(ap) if isinstance(ap, (list, tuple)) else (ap,) * frames.shape[0]
         sizes = np.array([[a.diode_x_m, a.diode_y_m] for a in aps])
-        return cls(np.asarray(config.positions_m, dtype=float), frames, sizes, aps)
+        return cls(np.asarray(config.positions_m, dtype=float), frames, sizes, aps,
+                   getattr(config, "windows", None))
+
+    def subset(self, idx):
+        """Return the DiodeSurfaces of the diodes ``idx`` (indices), in that order."""
+        idx = list(idx)
+        return DiodeSurfaces(self.positions_m[idx], self.frames[idx], self.sizes_m[idx],
+                             None if self.apertures is None else [self.apertures[i] for i in idx],
+                             None if self.windows is None else [self.windows[i] for i in idx])
 
 
 @dataclass
@@ -397,6 +415,7 @@ class Renderer:
             self._ap_params = np.array([[hx, hy, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
                                         for (hx, hy), a in zip(half, aps)])
         self.control_variate = bool(control_variate) and aps is not None
+        self._win = _window_params(diodes)
         self._vis = self._visibility_table()
         self._hit = None if self._pt is None else self._hit_table()
 
@@ -577,6 +596,63 @@ class Renderer:
         wgt = dr.select(in_a, lit, dr.select((mode == 2) & inside, 0.0, 1.0))
         return gx, gy, wgt
 
+    # -- a window over the diode (simcore.shapes.window): one helper for the kernels
+    def _through_window(self, t, task, o, d, fx, fy, u):
+        """Return (exit point, weight, blocked) for light reaching the diode point ``o`` (at fractions ``fx``,
+        ``fy`` of its sides) from unit directions ``d`` (body frame) through the task's window, one uniform
+        ``u`` per lane: the slab's terms k = 0..K (K the last whose exit point stays in the footprint, closed
+        form) carry c q^k per polarisation (:meth:`simcore.shapes.window.Window.terms`); k is drawn with
+        probability proportional to the mean over s and p of that term (a polarisation by its share of the
+        partial sum, then k from its truncated geometric law by inversion), the weight is the partial sum
+        (mean over s and p), and the light is blocked when the mesh meets the segment from ``o`` to the
+        window's lower face or the ray leaving the upper face at the k-th exit point along ``d``. Unbiased;
+        tasks without a window get (o, 1, the plain ray's test)."""
+        dr, mi = self._dr, self._mi
+        n_i, th, gap, hx, hy, alpha, sx, sy, has = (dr.gather(mi.Float, host_array(mi.Float, t["win"][:, i]), task)
+                                                    for i in range(9))
+        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
+        du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
+        c = dr.maximum(dn, 1e-12)
+        ct = dr.sqrt(dr.maximum(1.0 - (du * du + dv * dv) / (n_i * n_i), 0.0))     # cos theta_t
+        rs = dr.square((c - n_i * ct) / (c + n_i * ct))
+        rp = dr.square((ct - n_i * c) / (ct + n_i * c))
+        a = dr.exp(-alpha * th / dr.maximum(ct, 1e-12))
+        g_c, inner = gap / c, th / (n_i * dr.maximum(ct, 1e-12))  # lateral walk per unit |d_uv|: to p1, per pass
+
+        def k_axis(dx, half, x):
+            # |dx| (gap / cos + (2k + 1) inner) <= half - sign(dx) x  (exit point inside the footprint)
+            room = half - dr.select(dx > 0, x, -x)
+            ad = dr.abs(dx)
+            k = dr.floor(((room / dr.maximum(ad, 1e-20) - g_c) / inner - 1.0) * 0.5)
+            return dr.select(ad > 1e-12, dr.minimum(k, 1e9), 1e9)
+
+        K = dr.maximum(dr.minimum(k_axis(du, hx, fx * sx), k_axis(dv, hy, fy * sy)), -1.0)
+
+        def partial(r):
+            q = dr.maximum(dr.square(r * a), 1e-30)
+            qK = dr.exp((K + 1.0) * dr.log(q))
+            return q, qK, dr.square(1.0 - r) * a * (1.0 - qK) / (1.0 - q)
+
+        qs, qKs, Ss = partial(rs)
+        qp, qKp, Sp = partial(rp)
+        tot = Ss + Sp
+        ps = Ss / dr.maximum(tot, 1e-30)
+        use_s = u < ps
+        u2 = dr.select(use_s, u / dr.maximum(ps, 1e-30), (u - ps) / dr.maximum(1.0 - ps, 1e-30))
+        u2 = dr.clip(u2, 0.0, 1.0 - 1.0 / 16777216.0)
+        q, qK = dr.select(use_s, qs, qp), dr.select(use_s, qKs, qKp)
+        k = dr.clip(dr.floor(dr.log(1.0 - u2 * (1.0 - qK)) / dr.log(q)), 0.0, dr.maximum(K, 0.0))
+        win = has > 0.5
+        lateral = d - dn * fr[2]
+        exit_ = o + (g_c + (2.0 * k + 1.0) * inner) * lateral + (gap + th) * fr[2]
+        weight = dr.select(win, dr.select(K >= 0.0, 0.5 * tot, 0.0), 1.0)
+        exit_ = dr.select(win, exit_, o)
+        blocked = self._blocked_by_mesh(exit_, d)
+        if self._scene is not None:
+            seg = mi.Ray3f(mi.Ray3f(o, d), gap / c)
+            blocked |= self._scene.ray_test(seg, win & (gap > 0.0))
+        return exit_, weight, blocked
+
     # -- direct Sun kernel
     def _direct_kernel(self, t, task, j):
         dr, mi = self._dr, self._mi
@@ -608,7 +684,12 @@ class Renderer:
         fx, fy, wgt = self._split_point(t, task, d, fx, fy)
         o = (self._gather3(self._v3(t["pos"]), task) + fx * self._gather3(self._v3(t["U"]), task)
              + fy * self._gather3(self._v3(t["V"]), task))
-        blocked = self._blocked_by_mesh(o, d)
+        if self._win is None:
+            blocked = self._blocked_by_mesh(o, d)
+        else:
+            a_, _ = mi.sample_tea_32(key ^ mi.UInt32(_WINDOW_KEY), j, _TEA_ROUNDS)
+            o, tw, blocked = self._through_window(t, task, o, d, fx, fy, mi.Float(a_ >> 8) * (1.0 / 16777216.0))
+            wgt = wgt * tw
         if t["earth"] is not None:
             c = self._gather3(self._v3(t["earth"]), task)
             b = dr.dot(d, c)
@@ -653,7 +734,12 @@ class Renderer:
         cos_d = dr.dot(g3("n"), d)
         rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
         hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot)
-        ok = hit & (cos_sun > 0) & (cos_d > 0) & ~self._blocked_by_mesh(o, d)
+        if self._win is None:
+            blocked = self._blocked_by_mesh(o, d)
+        else:
+            o, tw, blocked = self._through_window(t, task, o, d, fx, fy, r[5])
+            wgt = wgt * tw
+        ok = hit & (cos_sun > 0) & (cos_d > 0) & ~blocked
         # f / q with q = pmf_b / Omega_b, Omega_b = 2 pi xmax dt / N_P; L = rho E cos_sun / pi
         return dr.select(ok, wgt * rho * cos_sun * cos_d * (2.0 / _N_P) * xmax * dt / pmf, 0.0)
 
@@ -1150,6 +1236,8 @@ class Renderer:
         t = dict(k=dk, pos=dd["pos"][dk], U=dd["U"][dk], V=dd["V"][dk], n=dd["n"][dk], sun=sun[ep],
                  frame=self.diodes.frames[dk], ap=self._ap_params[dk])
         t["earth"] = None if earth is None else earth[ep] - dd["pos"][dk]
+        if self._win is not None:
+            t["win"] = self._win[dk]
         return t
 
     def render(self, sun_dir_body, earth_center_body_m=None, R_ecef_from_body=None, sun_scale=None, *,
@@ -1527,6 +1615,21 @@ def _plane_normals(normals, max_planes=_MAX_MIRROR_PLANES):
     if not 0 < len(uniq) <= max_planes:
         return None
     return uniq / np.linalg.norm(uniq, axis=1, keepdims=True)
+
+
+def _window_params(diodes):
+    """Return (K, 9) float64 [index, thickness, gap, half side u, half side v, absorption (1/m), diode side u,
+    diode side v, has a window] per diode for :meth:`Renderer._through_window`, or None without windows."""
+    if diodes.windows is None:
+        return None
+    out = np.zeros((diodes.count, 9))
+    for k, w in enumerate(diodes.windows):
+        if w is None:
+            out[k] = [1.5, 1e-3, 0.0, 1e3, 1e3, 0.0, *diodes.sizes_m[k], 0.0]
+        else:
+            out[k] = [w.index, w.thickness_m, w.gap_m, w.size_m[0] / 2, w.size_m[1] / 2, w.absorption_per_m,
+                      *diodes.sizes_m[k], 1.0]
+    return out
 
 
 def _direct_size(n):

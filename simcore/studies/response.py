@@ -130,8 +130,7 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
     idx = check_request(cfg, diodes, plane, float(step_deg), samples, map_step_deg)
     all_ds = DiodeSurfaces.from_config(cfg)
     # only the chosen diodes receive light; every part of the satellite (all mounts) still blocks it
-    ds = DiodeSurfaces(all_ds.positions_m[idx], all_ds.frames[idx], all_ds.sizes_m[idx],
-                       [all_ds.apertures[i] for i in idx])
+    ds = all_ds.subset(idx)
     rend = Renderer(ds, build_satellite_mesh(cfg), e_sun_w_m2=1.0, variant=variant)
     theta = np.arange(0.0, 90.0 + 1e-9, float(step_deg))
     d_local = _plane_directions(theta, plane)
