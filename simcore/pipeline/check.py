@@ -232,8 +232,13 @@ def describe(report):
                      f"the body or other parts cross the diode (there the reference takes the diode's visible "
                      f"share traced against the mesh, a deterministic quadrature)")
     if report.get("direct_unchecked"):
-        lines.append(f"  direct: {report['direct_unchecked']} diode-epochs left out: a part the analytic model does "
-                     f"not know ([[part]]: panels, antennas, user meshes) may shade the Sun there")
+        win = report.get("direct_unchecked_window", 0)
+        parts = report["direct_unchecked"] - win if win else report["direct_unchecked"]
+        reasons = ([f"{parts} where a part the analytic model does not know ([[part]]: panels, antennas, user "
+                    f"meshes) may shade the Sun"] if parts > 0 else []) + \
+                  ([f"{win} where the body may shade a diode under a window (the light leaves the window shifted: "
+                    f"no exact reference)"] if win else [])
+        lines.append(f"  direct: {report['direct_unchecked']} diode-epochs left out: {'; '.join(reasons)}")
     if report.get("reflected_unchecked"):
         lines.append(f"  reflected: {report['reflected_unchecked']} diode-epochs with light reflected by the "
                      f"spacecraft, not checked (the analytic model's surfaces are black; the path tracer's own "

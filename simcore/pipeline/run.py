@@ -30,6 +30,7 @@ from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
 from simcore.shapes.occlusion import box_hit
+from simcore.shapes.window import WindowedWell
 from simcore.render.irradiance import DiodeSurfaces, Renderer, occluder_scene, rays_blocked
 
 from simcore import _llvm
@@ -275,14 +276,74 @@ class PreparedRun:
         the traced :attr:`visibility` where shadows cross the diodes (the check's reference). The direct Sun
         alone (``albedo=False``) is numpy only: it may run in another thread while Dr.Jit renders."""
         g = self.geometry
-        return diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
-                                self.config.frames, self.config.apertures, map=reflectivity_map,
-                                e_sun_w_m2=self.opts.e_sun_w_m2, distance_scaling=self.opts.distance_scaling,
-                                eclipse="conical" if self.opts.sun_disc else "cylindrical",
-                                body=BodyBox.from_config(self.config),
-                                sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
-                                albedo=albedo, backend="auto" if albedo else "numpy",
-                                visibility=self.visibility if mesh else None)
+        out = diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
+                               self.config.frames, self.config.apertures, map=reflectivity_map,
+                               e_sun_w_m2=self.opts.e_sun_w_m2, distance_scaling=self.opts.distance_scaling,
+                               eclipse="conical" if self.opts.sun_disc else "cylindrical",
+                               body=BodyBox.from_config(self.config),
+                               sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
+                               albedo=albedo, backend="auto" if albedo else "numpy",
+                               visibility=self.visibility if mesh else None)
+        if any(w is not None for w in self.config.windows):
+            self._windowed_analytic(out, sl, reflectivity_map, direct, mesh, albedo)
+        return out
+
+    def _windowed_analytic(self, res, sl, reflectivity_map, direct, mesh, albedo=True):
+        """Replace in ``res`` (the analytic result of epochs ``sl``) the columns of the diodes under a window by
+        the model with the window: each integrand times the slab's closed-form transmittance with its
+        footprint (:class:`simcore.shapes.window.WindowedWell`, numpy backend). The direct Sun without the
+        body box (where the box may shade such a diode, :meth:`window_shadow` leaves it out of the check),
+        the albedo with it at the diode's centre, as for the other diodes. Numpy only (it may run beside the
+        renderer in the worker thread), but for the traced :attr:`visibility` that ``mesh`` asks for."""
+        cfg, g = self.config, self.geometry
+        idx = [k for k, w in enumerate(cfg.windows) if w is not None]
+        resps = [WindowedWell(cfg.diodes[k].aperture, cfg.diodes[k].window) for k in idx]
+        frames = np.asarray(cfg.frames)[idx]
+        box = BodyBox.from_config(cfg)
+        common = dict(map=reflectivity_map, e_sun_w_m2=self.opts.e_sun_w_m2,
+                      distance_scaling=self.opts.distance_scaling,
+                      eclipse="conical" if self.opts.sun_disc else "cylindrical",
+                      sun_angular_radius_rad=self.sun_angular_radius_rad)
+        args = (g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl], frames, resps)
+        if direct:
+            res.direct_w_m2[:, idx] = diode_irradiance(*args, albedo=False, **common).direct_w_m2
+        if not albedo:
+            return
+        vis = None
+        if mesh:
+            v = self.visibility
+            vis = DirectionVisibility(v.mask[idx], v.fine[idx], v.half[idx])
+        alb = diode_irradiance(*args, direct=False, visibility=vis, **common,
+                               body=BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]))
+        res.albedo_w_m2[:, idx] = alb.albedo_w_m2
+        if mesh:
+            res.albedo_mesh_w_m2[:, idx] = alb.albedo_mesh_w_m2
+            res.albedo_visibility_error_w_m2[:, idx] = alb.albedo_visibility_error_w_m2
+
+    def window_shadow(self, sl):
+        """Return (n, K) bool: the diode-epochs of ``sl`` with a window over the diode whose direct Sun the body box
+        may shade: part of the solar disc (its centre or 16 rim points) lies in front of the diode and below its
+        panel's plane. There the light leaves the window shifted along its path, which moves the box's shadow:
+        the analytic model has no exact reference, and the check leaves that direct value out (counted)."""
+        g, cfg = self.geometry, self.config
+        n, K = sl.stop - sl.start, cfg.n_diodes
+        out = np.zeros((n, K), bool)
+        idx = [k for k, w in enumerate(cfg.windows) if w is not None]
+        if not idx:
+            return out
+        s = g.sun_dir_body[sl]
+        ok = np.all(np.isfinite(s), axis=1)
+        s = np.where(ok[:, None], s, [[0.0, 0.0, 1.0]])
+        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
+        ang = 2 * np.pi * np.arange(16) / 16
+        offsets = np.vstack([[0.0, 0.0], a * np.column_stack([np.cos(ang), np.sin(ang)])])
+        dirs = disc_directions(s, offsets)                                              # (17, n, 3)
+        box = BodyBox.from_config(cfg)
+        for k in idx:
+            front = dirs @ cfg.diodes[k].normal_body > 0
+            below = dirs @ box.panel_normals[k] < 0
+            out[:, k] = (front & below).any(axis=0) & ok
+        return out
 
     @functools.cached_property
     def worker(self):
@@ -323,7 +384,8 @@ class PreparedRun:
             "analytic_albedo_refined": fine.albedo_w_m2,
             "albedo_mesh": fine.albedo_mesh_w_m2,
             "albedo_visibility_error": fine.albedo_visibility_error_w_m2,
-            "direct_unchecked": self.parts_shadow(sl),
+            "direct_unchecked": self.parts_shadow(sl) | self.window_shadow(sl),
+            "direct_unchecked_window": self.window_shadow(sl),
             "valid": valid & res.valid,
         }
         return out
@@ -333,7 +395,7 @@ class PreparedRun:
 # by an older sunsim and cannot be resumed by this one
 CHUNK_ARRAYS = ("rendered", "rendered_se", "rendered_dof", "samples", "direct_plain", "analytic",
                 "analytic_albedo_refined", "albedo_mesh", "albedo_visibility_error",
-                "direct_unchecked", "valid")
+                "direct_unchecked", "direct_unchecked_window", "valid")
 
 PLAIN_CHECK_SHARE = 0.125     # share of the epochs whose direct Sun is rendered again without the aperture hint
 # ...with at least this many samples: with 64, a well's edge crosses a handful of strata and the hint-free
@@ -451,6 +513,11 @@ def build_dataset(study, data, variant):
                                  {"units": "1", "long_name": "1 where a part the analytic model does not know "
                                                              "([[part]]: panels, antennas, user meshes) may block the "
                                                              "direct Sun: the check leaves that direct value out"}),
+            "direct_unchecked_window": (("time", "diode"), np.asarray(data.get("direct_unchecked_window",
+                                                                              np.zeros((n, k), bool)), np.int8),
+                                        {"units": "1", "long_name": "1 where a diode under a window may be shaded "
+                                                                    "by the body (its light leaves the window "
+                                                                    "shifted): also in direct_unchecked"}),
             "sun_dir_body": (("time", "xyz"), g.sun_dir_body, {"units": "1", "long_name": "unit satellite->Sun vector",
                                                                  "frame": "body"}),
             "sun_scale": ("time", study.sun_scale(slice(0, n)),
@@ -712,6 +779,9 @@ def check_run(ds):
         refl = masked(irr[..., 2])
         report["reflected_unchecked"] = int(np.count_nonzero(refl > 0))
     report["direct_unchecked"] = int(np.count_nonzero(parts & valid))
+    if "direct_unchecked_window" in ds:
+        report["direct_unchecked_window"] = int(np.count_nonzero(ds["direct_unchecked_window"].values.astype(bool)
+                                                                 & valid))
     if "albedo_mesh" in ds:
         report["albedo_mesh_quadrature"] = int(np.count_nonzero((ds["albedo_mesh"].values > 0)
                                                                 & (ref[..., 1] > _check.ALBEDO_FLOOR_W_M2) & valid))

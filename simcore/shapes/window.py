@@ -83,7 +83,7 @@ class Window:
         """Return the transmittance (...,) of the infinite slab for unpolarised light at angle theta: the mean
         over s and p of c / (1 - q), = (1 - R) / (1 + R) each without absorption."""
         c, q = self.terms(cos_theta)
-        return np.mean(c / (1.0 - q), axis=-1)
+        return np.mean(_geometric(c, q, 0.0), axis=-1)
 
     def exit_offsets(self, d_diode):
         """Return (first, step) (..., 2) metres in the diode's (u, v): term k of the slab leaves the upper face
@@ -96,6 +96,13 @@ class Window:
         inner = self.thickness_m / (self.index * c_t)
         first = d[..., :2] * (self.gap_m / dn + inner)[..., None]
         return first, d[..., :2] * (2.0 * inner)[..., None]
+
+
+def _geometric(c, q, q_end):
+    """Return c (1 - q_end) / (1 - q), the sum of c q^k up to the term before q_end = q^(K+1); 0 where q = 1
+    (grazing incidence: R = 1, c = 0)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(q < 1.0, c * (1.0 - q_end) / np.where(q < 1.0, 1.0 - q, 1.0), 0.0)
 
 
 def _overlap(lo, hi, off, half):
@@ -151,7 +158,7 @@ class WindowedWell:
         # full terms: c (1 - q^(kf+1)) / (1 - q) x lit
         with np.errstate(over="ignore", under="ignore", invalid="ignore"):
             qk = np.where(np.isinf(kf)[:, None], 0.0, q ** (kf + 1.0)[:, None])
-        full = np.mean(c * (1.0 - qk) / (1.0 - q), axis=1) * lit
+        full = np.mean(_geometric(c, q, qk), axis=1) * lit
         # partial terms kf+1 .. ke-1, until the terms fall below _TAIL of the first
         with np.errstate(divide="ignore"):
             n_tail = np.where(q.max(axis=1) > 0, np.ceil(np.log(_TAIL) / np.log(np.maximum(q.max(axis=1), 1e-300))), 1)

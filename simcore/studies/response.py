@@ -5,7 +5,8 @@ to 90 deg, the renderer traces the direct irradiance on the diode through the wh
 its neighbours' mounts, the body), with no Earth: the response is that irradiance over E_sun (a point
 Sun at 1 AU), with its standard error. Beside it: the bare cosine, the thesis' eq. 4.15 for the diode's FOV,
 the well's closed-form overlap (:meth:`simcore.shapes.aperture.WellAperture.response`, which ignores the
-rest of the satellite) and Basilisk's response ``c (1 - exp(-c^2 / kappa))`` inside a cut-off FOV with the
+rest of the satellite; under a cover glass, :class:`simcore.shapes.window.WindowedWell`: the slab's Fresnel
+transmittance per polarisation with its footprint, the light it refracts counted as direct) and Basilisk's response ``c (1 - exp(-c^2 / kappa))`` inside a cut-off FOV with the
 Kelly factor kappa fitted to the traced curve (:func:`simcore.sensor.errors.basilisk_response`), so that a
 Basilisk user can carry the traced optics over. ``map`` adds the response over the diode's whole
 hemisphere (angle from the normal x azimuth from u).
@@ -26,6 +27,7 @@ from simcore.errors import InvalidInputError
 from simcore.radiometry.response import Eq415Response
 from simcore.render.irradiance import DiodeSurfaces, Renderer
 from simcore.sensor.errors import basilisk_response
+from simcore.shapes.window import WindowedWell
 
 PLANES = ("x", "y")
 
@@ -150,7 +152,7 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
             direct=direct, reflected=reflected, cosine=np.cos(np.radians(theta)),
             eq415=(Eq415Response(fov).response(d_local) if np.cos(np.radians(fov)) > EQ415_CUTOFF_COS
                    else np.clip(d_local[:, 2], 0.0, None)),      # eq. 4.15 needs a FOV below its cut-off
-            well=ap.response(d_local), kelly_factor=kappa, kelly_fov_deg=kfov,
+            well=_closed_form(ap, cfg.diodes[k].window).response(d_local), kelly_factor=kappa, kelly_fov_deg=kfov,
             kelly=basilisk_response(np.cos(np.radians(theta)), np.radians(kfov) - 1e-9, kappa), kelly_rms=rms)
         if map_step_deg is not None:
             mt = np.arange(0.5 * map_step_deg, 90.0, map_step_deg)
@@ -164,6 +166,11 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
             r.map_response = (mres.direct_w_m2[:, j] + mres.reflected_w_m2[:, j]).reshape(TH.shape)
         out.append(r)
     return out
+
+
+def _closed_form(well, window):
+    """Return the closed-form response of a diode's well, under its window when it has one."""
+    return well if window is None else WindowedWell(well, window)
 
 
 def format_table(responses):
