@@ -513,8 +513,8 @@ def _window_for(table, aperture, where):
         raise ConfigError(f"{w}: gap_mm (diode surface to the window's lower face) must be >= 0, got {vals['gap_mm']:g}")
     if vals["gap_mm"] * MM < aperture.height_m - 1e-12:
         raise ConfigError(f"{w}: gap_mm {vals['gap_mm']:g} puts the window inside the diode's well "
-                          f"({aperture.height_m / MM:.3f} mm tall); the window sits on or above the well's rim: "
-                          f"use gap_mm >= {aperture.height_m / MM:.3f}")
+                          f"({aperture.height_m / MM:.4f} mm tall); the window sits on or above the well's rim: "
+                          f"use gap_mm >= {np.ceil(aperture.height_m / MM * 1e3) / 1e3:.3f}")
     if vals["absorption_per_mm"] < 0:
         raise ConfigError(f"{w}: absorption_per_mm must be >= 0 (1/mm), got {vals['absorption_per_mm']:g}")
     need = (aperture.opening_x_m / MM, aperture.opening_y_m / MM)
@@ -566,7 +566,8 @@ def _validate_mounts(diodes, body, mount):
         height = mount_height_m(d, body, mount)
         if height > body.clearance_m + 1e-12:
             raise ConfigError(
-                f"diode {d.index} ({d.name}): its ramp and well rise {height / MM:.2f} mm above the {d.panel} panel, "
+                f"diode {d.index} ({d.name}): its ramp and well{' and window' if d.window is not None else ''} rise "
+                f"{height / MM:.2f} mm above the {d.panel} panel, "
                 f"more than the {body.clearance_m / MM:g} mm launch-pod clearance; the FOV {d.fov_deg:g} deg needs a "
                 f"well {d.aperture.height_m / MM:.2f} mm tall and {d.aperture.opening_x_m / MM:.2f} mm wide - "
                 "choose a smaller FOV or tilt, thinner walls, or raise body.clearance_mm")

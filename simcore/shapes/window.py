@@ -160,10 +160,12 @@ class WindowedWell:
             qk = np.where(np.isinf(kf)[:, None], 0.0, q ** (kf + 1.0)[:, None])
         full = np.mean(_geometric(c, q, qk), axis=1) * lit
         # partial terms kf+1 .. ke-1, until the terms fall below _TAIL of the first
-        with np.errstate(divide="ignore"):
-            n_tail = np.where(q.max(axis=1) > 0, np.ceil(np.log(_TAIL) / np.log(np.maximum(q.max(axis=1), 1e-300))), 1)
         start = kf + 1.0
-        n_part = np.where(np.isfinite(ke - start), np.clip(ke - start, 0, None), 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            qmax = np.minimum(q.max(axis=1), 1.0 - 1e-16)
+            n_tail = np.where(qmax > 0, np.ceil(np.log(_TAIL) / np.log(np.maximum(qmax, 1e-300))), 1)
+            span = ke - start
+            n_part = np.where(np.isfinite(span), np.clip(span, 0, None), 0)
         n_part = np.minimum(n_part, n_tail).astype(np.int64)
         part = np.zeros(len(d))
         for j in range(int(n_part.max(initial=0))):
