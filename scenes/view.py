@@ -53,6 +53,7 @@ MATERIAL_RGB = {
 }
 OTHER_RGB = (0.85, 0.25, 0.65)
 SUN_COLOUR = "#ff3b1f"
+WINDOW_COLOUR = "#9fd8ff"   # cover glasses: light-blue translucent slabs drawn over the render (not traced here)
 
 
 @dataclass(frozen=True)
@@ -247,6 +248,28 @@ def _render_panel(config, g, camera, rmap, earth, spp, seed, label):
     return Panel(label, camera, passes, srgb8(lin), visible_diodes(config, camera, passes))
 
 
+def window_outlines(config, camera):
+    """Return [(diode index, pixel polygon (M, 2))]: the outline of each diode's window (its slab's eight corners
+    projected, convex hull) that faces the camera (windows behind the body's far side are not drawn)."""
+    from scipy.spatial import ConvexHull
+    out = []
+    sq = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+    for d in config.diodes:
+        w = d.window
+        if w is None:
+            continue
+        u, v, n = d.frame_body
+        base = d.position_body_m + w.gap_m * n
+        if (np.asarray(camera.origin_m) - base) @ n <= 0:
+            continue
+        ring = base + sq[:, :1] * (w.size_m[0] / 2) * u + sq[:, 1:] * (w.size_m[1] / 2) * v
+        xy, depth = camera.project(np.vstack([ring, ring + w.thickness_m * n]))
+        if not np.all(depth > 0):
+            continue
+        out.append((d.index, xy[ConvexHull(xy).vertices]))
+    return out
+
+
 def visible_diodes(config, camera, passes, radius_px=4):
     """Return (index, pixel xy of the label) of the diodes the camera sees, in index order.
 
@@ -391,6 +414,15 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
     ov.set_axis_off()
     ov.patch.set_alpha(0.0)
     dx = 0
+    windows = False
+    for p in panels:
+        for _, poly in window_outlines(config, p.camera):
+            from matplotlib.patches import Polygon
+            ov.add_patch(Polygon(poly + [dx, 0], closed=True, facecolor=WINDOW_COLOUR, alpha=0.35,
+                                 edgecolor=WINDOW_COLOUR, linewidth=max(0.5, fs / 12)))
+            windows = True
+        dx += p.camera.width
+    dx = 0
     for p in panels:
         for k, (x, y) in p.labelled:
             ov.text(x + dx, y, str(k), color="white", fontsize=fs, fontweight="bold", ha="center", va="center",
@@ -421,6 +453,10 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
     others = sorted({k for p in panels for k in np.unique(p.passes.kind)} - set(MATERIAL_RGB) - {"", "earth"})
     handles = [Patch(color=srgb8(MATERIAL_RGB[k][0]) / 255.0, label=_legend_label(k, config)) for k in kinds]
     handles += [Patch(color=srgb8(OTHER_RGB) / 255.0, label=_legend_label(k, config)) for k in others]
+    if windows:
+        idx = sorted({w.index for w in config.windows if w is not None})
+        handles.append(Patch(facecolor=WINDOW_COLOUR, edgecolor=WINDOW_COLOUR,
+                             label="cover glass" + ("es, n " if len(idx) > 1 else ", n ") + "/".join(f"{i:g}" for i in idx)))
     if handles:
         leg = fig.legend(handles=handles, loc="upper center" if close_up else "upper left", fontsize=fs * 0.8,
                          ncol=len(handles) if close_up else 1, frameon=True, framealpha=0.6,

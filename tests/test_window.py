@@ -288,3 +288,22 @@ def test_example_run_passes_the_check_that_knows_the_window(tmp_path):
     _, bad = check_run(forged)
     assert not bad["pass"]
     assert any(t["component"] == "direct" and not t["passed"] for t in bad["tests"])
+
+
+# ---- sunsim view draws the window -------------------------------------------------------------------------------
+def test_view_outlines_the_window_where_the_camera_sees_it(tmp_path):
+    from scenes.view import close_up_cameras, window_outlines
+    cfg = SatelliteConfig.load(EXAMPLE)
+    cams = close_up_cameras(400, 300)
+    above = cams["+x, above"]                    # looks down on the top face, where the diode and its window are
+    ((k, poly),) = window_outlines(cfg, above)
+    centre_xy = above.project(cfg.positions_m[0] + 1.5e-3 * cfg.normals[0])[0][0]
+    # the diode's centre lies inside the drawn slab, and the 40 mm slab spans more than the 2.65 mm diode
+    from matplotlib.path import Path as MPath
+    assert k == 0 and MPath(poly).contains_point(centre_xy)
+    corners = above.project(cfg.positions_m[0] + np.array([[20e-3, 20e-3, 0.0], [-20e-3, -20e-3, 0.0]]))[0]
+    assert np.ptp(poly[:, 0]) >= 0.99 * abs(corners[0, 0] - corners[1, 0])
+    assert window_outlines(cfg, cams["+y, below"]) == []    # from below the plate: the window faces away
+    assert main(["view", str(EXAMPLE), "--close-up", "--spp", "1", "--resolution", "240", "135",
+                 "-o", str(tmp_path / "v.png")]) == 0
+
