@@ -307,3 +307,33 @@ def test_view_outlines_the_window_where_the_camera_sees_it(tmp_path):
     assert main(["view", str(EXAMPLE), "--close-up", "--spp", "1", "--resolution", "240", "135",
                  "-o", str(tmp_path / "v.png")]) == 0
 
+
+# ---- reflected light through the window -------------------------------------------------------------------------
+@pytest.mark.parametrize("window, agrees", [(True, True), (False, False)])
+def test_sun_seen_in_a_mirror_through_the_window(window, agrees):
+    # The mirror geometry of tests/test_reflected.py: a 10 mm diode facing +z at the origin, a perfect mirror
+    # plate x = 0.05 m facing it (y in [-1, 1] m, z in [0, 1] m), the Sun at s = (-0.6, 0, 0.8): the diode sees
+    # the Sun's image along s' = (0.6, 0, 0.8), 36.87 deg from its normal, reflected = E cos(n, s') = 0.8 E (a
+    # uniform disc wholly above the horizon). Under a 60 x 60 mm window (n 1.5, 1 mm, 0.5 mm above the diode)
+    # that light crossed the slab on the diode's first segment: x T(36.87 deg) from the Fresnel sum, as the
+    # direct Sun at the same angle. z-tests |z| < 3.3 (false alarm 1e-3 each, fixed seed); the negative case
+    # compares with the oracle without the window.
+    import trimesh
+    from simcore.render.irradiance import SUN_ANGULAR_RADIUS_RAD
+    side, e_sun = 0.01, 1000.0
+    win = Window(1.5, 1e-3, 0.5e-3, (60e-3, 60e-3))
+    ds = DiodeSurfaces(np.zeros((1, 3)), np.eye(3)[None], [[side, side]], windows=[win])
+    plate = trimesh.Trimesh([[0.05, -1.0, 0.0], [0.05, -1.0, 1.0], [0.05, 1.0, 1.0], [0.05, 1.0, 0.0]],
+                            [[0, 1, 2], [0, 2, 3]], process=False)
+    plate.metadata["material"] = "mirror"
+    rend = Renderer(ds, plate, e_sun_w_m2=e_sun, sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD)
+    res = rend.render(np.array([[-0.6, 0.0, 0.8]]), seed=21, reflected_samples=4096)
+    theta = np.arccos(0.8)
+    # the finite window: its exit points stay > 20 mm inside its edges at 36.87 deg, so T is the infinite slab's
+    T = unpolarised_T(theta, 1.5)
+    expected = e_sun * 0.8 * (T if window else 1.0)
+    z = (res.reflected_w_m2[0, 0] - expected) / res.reflected_se_w_m2[0, 0]
+    assert (abs(z) < 3.3) == agrees, (res.reflected_w_m2, res.reflected_se_w_m2, expected, z)
+    # the direct Sun through the same window, the same transmittance (the disc's cos averaged: SE from the disc)
+    assert abs(res.direct_w_m2[0, 0] - e_sun * 0.8 * T) < 3.3 * res.direct_se_w_m2[0, 0] + FLOAT_REL * e_sun
+

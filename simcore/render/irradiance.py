@@ -597,16 +597,15 @@ class Renderer:
         return gx, gy, wgt
 
     # -- a window over the diode (simcore.shapes.window): one helper for the kernels
-    def _through_window(self, t, task, o, d, fx, fy, u):
-        """Return (exit point, weight, blocked) for light reaching the diode point ``o`` (at fractions ``fx``,
-        ``fy`` of its sides) from unit directions ``d`` (body frame) through the task's window, one uniform
-        ``u`` per lane: the slab's terms k = 0..K (K the last whose exit point stays in the footprint, closed
-        form) carry c q^k per polarisation (:meth:`simcore.shapes.window.Window.terms`); k is drawn with
-        probability proportional to the mean over s and p of that term (a polarisation by its share of the
-        partial sum, then k from its truncated geometric law by inversion), the weight is the partial sum
-        (mean over s and p), and the light is blocked when the mesh meets the segment from ``o`` to the
-        window's lower face or the ray leaving the upper face at the k-th exit point along ``d``. Unbiased;
-        tasks without a window get (o, 1, the plain ray's test)."""
+    def _window_exit(self, t, task, o, d, fx, fy, u):
+        """Return (exit point, weight, length of the segment to the lower face, has a window) for light reaching
+        the diode point ``o`` (at fractions ``fx``, ``fy`` of its sides) from unit directions ``d`` (body frame)
+        through the task's window, one uniform ``u`` per lane: the slab's terms k = 0..K (K the last whose exit
+        point stays in the footprint, closed form) carry c q^k per polarisation
+        (:meth:`simcore.shapes.window.Window.terms`); k is drawn with probability proportional to the mean
+        over s and p of that term (a polarisation by its share of the partial sum, then k from its truncated
+        geometric law by inversion) and the weight is the partial sum (mean over s and p): unbiased, and
+        exact whatever k is drawn when nothing shades the window. Tasks without a window: (o, 1, 0, False)."""
         dr, mi = self._dr, self._mi
         n_i, th, gap, hx, hy, alpha, sx, sy, has = (dr.gather(mi.Float, host_array(mi.Float, t["win"][:, i]), task)
                                                     for i in range(9))
@@ -646,12 +645,33 @@ class Renderer:
         lateral = d - dn * fr[2]
         exit_ = o + (g_c + (2.0 * k + 1.0) * inner) * lateral + (gap + th) * fr[2]
         weight = dr.select(win, dr.select(K >= 0.0, 0.5 * tot, 0.0), 1.0)
-        exit_ = dr.select(win, exit_, o)
+        return dr.select(win, exit_, o), weight, dr.select(win, g_c, 0.0), win
+
+    def _through_window(self, t, task, o, d, fx, fy, u):
+        """Return (exit point, weight, blocked) for light reaching the diode point ``o`` (at fractions ``fx``,
+        ``fy`` of its sides) from unit directions ``d`` (body frame) through the task's window, one uniform
+        ``u`` per lane (:meth:`_window_exit`): blocked when the mesh meets the segment from ``o`` to the
+        window's lower face or the ray leaving the upper face at the drawn exit point along ``d``. Tasks
+        without a window get (o, 1, the plain ray's test)."""
+        exit_, weight, seg, win = self._window_exit(t, task, o, d, fx, fy, u)
         blocked = self._blocked_by_mesh(exit_, d)
         if self._scene is not None:
-            seg = mi.Ray3f(mi.Ray3f(o, d), gap / c)
-            blocked |= self._scene.ray_test(seg, win & (gap > 0.0))
+            mi = self._mi
+            blocked |= self._scene.ray_test(mi.Ray3f(mi.Ray3f(o, d), seg), win & (seg > 0.0))
         return exit_, weight, blocked
+
+    def _window_first_segment(self, scene, t, task, o, d, fx, fy, u):
+        """Return (origin, weight) of a reflected path's first ray from the diode point ``o`` along ``d``: when
+        nothing of the path-traced ``scene`` lies between ``o`` and the window's lower face, the light crossed
+        the window: the ray starts at the drawn exit point of the upper face and the path carries the slab's
+        weight (:meth:`_window_exit`); else (a well wall under the window) it starts at ``o`` with weight 1
+        (what reaches that wall through the window is not attenuated by it: the window is traced on the
+        diode's own first segment only)."""
+        mi, dr = self._mi, self._dr
+        exit_, weight, seg, win = self._window_exit(t, task, o, d, fx, fy, u)
+        under = scene.ray_test(mi.Ray3f(mi.Ray3f(o, d), seg), win & (seg > 0.0))
+        cross = win & ~under
+        return dr.select(cross, exit_, o), dr.select(cross, weight, 1.0)
 
     # -- direct Sun kernel
     def _direct_kernel(self, t, task, j):
@@ -877,6 +897,13 @@ class Renderer:
         cos0 = dr.dot(fr[2], d)
         # the path's sums are radiances times cos / (pi pdf); x pi at the end: irradiance = E[L cos / pdf]
         thr0 = dr.select((pdf0 > 0) & (cos0 > 0), cos0 / (np.pi * dr.maximum(pdf0, 1e-30)), 0.0)
+        o0 = o
+        if self._win is not None:
+            # a window over the diode: the first segment crosses it (directions stay; origin and weight change)
+            uw = [mi.Float(x >> 8) * (1.0 / 16777216.0)
+                  for x in mi.sample_tea_32(v["key"] ^ mi.UInt32(_WINDOW_KEY), j, _TEA_ROUNDS)]
+            o0, tw = self._window_first_segment(scene, t, task, o, d, fx, fy, uw[0])
+            thr0 = thr0 * tw
         acc = mi.Float(0.0)
         if planes is not None:
             # The Sun seen in a smooth mirror-like face (a delta lobe: no next-event estimate reaches it, and a
@@ -893,7 +920,10 @@ class Renderer:
             dm = disc_dir(img, rs[1], rs[2])
             cos_m = dr.dot(fr[2], dm)
             on = cos_m > 0
-            si_m = scene.ray_intersect(mi.Ray3f(o, dm), on)
+            o_m, tw_m = o, mi.Float(1.0)
+            if self._win is not None:
+                o_m, tw_m = self._window_first_segment(scene, t, task, o, dm, fx, fy, uw[1])
+            si_m = scene.ray_intersect(mi.Ray3f(o_m, dm), on)
             on &= si_m.is_valid()
             bs_m, w_m = si_m.bsdf().sample(ctx, si_m, rs[3], mi.Point2f(rs[4], rs[5]), on)
             dn_m = si_m.to_world(bs_m.wo)
@@ -903,8 +933,8 @@ class Renderer:
                 on &= ~earth_blocks(v["c0"] - (si_m.p - v["pos"]), dn_m)
             ps = p_spec(v, dm)
             # this estimates irradiance directly; the path's sum below is multiplied by pi at the end
-            acc = dr.select(on, w_m[0] * v["L_sun"] * cos_m / ps * power(ps, pdf_dir(dm)), 0.0) / np.pi
-        st = dict(o=o, d=d, thr=thr0, acc=acc, active=dr.full(mi.Bool, True, dr.width(task)),
+            acc = dr.select(on, tw_m * w_m[0] * v["L_sun"] * cos_m / ps * power(ps, pdf_dir(dm)), 0.0) / np.pi
+        st = dict(o=o0, d=d, thr=thr0, acc=acc, active=dr.full(mi.Bool, True, dr.width(task)),
                   pdf=mi.Float(0.0), delta=dr.full(mi.Bool, False, dr.width(task)), p=mi.Point3f(o),
                   pdf0=pdf0, d0=d)
         dr.eval(st)
