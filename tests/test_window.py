@@ -144,7 +144,7 @@ def test_small_window_loses_the_terms_whose_exit_leaves_it(tmp_path):
     theta = np.radians(r.theta_deg[sel])
     exact = slab_response(theta, 1.5, 1.0e-3, 0.2e-3, 2e-3)
     infinite = slab_response(theta, 1.5, 1.0e-3, 0.2e-3, np.inf)
-    assert 1 - exact[-1] / infinite[-1] > 0.4            # the edges take nearly half the light at 80 deg
+    assert 1 - exact[-1] / infinite[-1] > 0.5            # the edges take 57 % of the light at 80 deg
     # z-scores within 3: a false alarm rate < 0.3 % per angle (5 angles, fixed seed)
     assert np.all(_close(r.response[sel], r.response_se[sel], exact)), np.c_[r.theta_deg[sel], r.response[sel], exact,
                                                                           r.response_se[sel]]
