@@ -337,3 +337,40 @@ def test_sun_seen_in_a_mirror_through_the_window(window, agrees):
     # the direct Sun through the same window, the same transmittance (the disc's cos averaged: SE from the disc)
     assert abs(res.direct_w_m2[0, 0] - e_sun * 0.8 * T) < 3.3 * res.direct_se_w_m2[0, 0] + FLOAT_REL * e_sun
 
+
+# ---- the check's albedo reference where shadows cross a windowed diode ------------------------------------------
+def test_visible_share_under_a_window_traces_each_term_from_its_exit_point():
+    # A bare diode at the origin facing +z under a 20 x 20 mm window (n 1.5, 1 mm, 0.5 mm above it); a wall in the
+    # plane x = 12 mm, 8 mm tall, 2 m long. Toward theta = 60 deg in the x-n plane the ray leaving the upper face
+    # (height 1.5 mm) at x_e clears the wall when x_e < 12 mm - 6.5 mm tan(60 deg) = 0.742 mm; term k leaves at
+    # x_e = x + 0.5 mm tan(theta) + (2k + 1) 1 mm tan(theta_t) (Snell). So the share of the window's light the wall
+    # leaves: sum_k w_k |{x: x_e < 0.742 mm, x_e <= 10 mm}| / sum_k w_k |{x: x_e <= 10 mm}|, w_k the mean over s,
+    # p of (1 - R)^2 R^2k. Straight rays from the diode (no window) would clear it only for x < -1.86 mm: none.
+    import trimesh
+    wall = trimesh.creation.box(extents=[2e-3, 2.0, 8e-3])
+    wall.apply_translation([13e-3, 0.0, 4e-3])
+    win = Window(1.5, 1e-3, 0.5e-3, (20e-3, 20e-3))
+    ds = DiodeSurfaces(np.zeros((1, 3)), np.eye(3)[None], [[SIDE_M, SIDE_M]], windows=[win])
+    rend = Renderer(ds, wall)
+    th = np.radians(60.0)
+    local = np.array([[np.sin(th), 0.0, np.cos(th)]])
+    P = 400
+    grid = (np.arange(P) + 0.5) / P
+    whole = np.array([[-0.5, 0.5, -0.5, 0.5]])           # a bare diode: the well lights all of it
+    share = rend._window_visible_share(0, win, whole, local, grid)[0]
+    rs, rp = fresnel_angle_form(th, 1.5)
+    tt = np.arcsin(np.sin(th) / 1.5)
+    x = np.linspace(-SIDE_M / 2, SIDE_M / 2, 200001)
+    num = den = 0.0
+    for k in range(60):
+        wk = 0.5 * ((1 - rs) ** 2 * rs ** (2 * k) + (1 - rp) ** 2 * rp ** (2 * k))
+        xe = x + 0.5e-3 * np.tan(th) + (2 * k + 1) * 1e-3 * np.tan(tt)
+        num += wk * np.mean((xe < 12e-3 - 6.5e-3 * np.tan(th)) & (xe <= 10e-3))
+        den += wk * np.mean(xe <= 10e-3)
+    assert 0.15 < num / den < 0.25
+    # 400 points across the diode: the edge falls between two of them (1 / 400); the terms below 1e-3 of the
+    # first are left out of both sums (< 1e-3 of the share)
+    assert share == pytest.approx(num / den, abs=1 / 400 + 1e-3)
+    # the straight rays' share (what the reference took before it knew the window) is far off: all blocked
+    assert rend._blocked_share_of(np.array([0]), whole, local, grid)[0] == 1.0
+

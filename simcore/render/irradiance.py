@@ -1135,10 +1135,17 @@ class Renderer:
                 np.concatenate([np.full(int(job[1].sum()), job[0]) for job in jobs]), np.concatenate([job[2] for job in jobs]),
                 np.concatenate([job[3] for job in jobs]), [1e-3, 0.5, 1.0 - 1e-3])
             start = 0
-            for k, ok, _, _ in jobs:
+            for k, ok, rect, d_body in jobs:
                 n = int(ok.sum())
                 out[k][ok] = blocked[start:start + n]
                 start += n
+                win = None if self.diodes.windows is None else self.diodes.windows[k]
+                if win is not None:
+                    # under a window the light leaves its upper face shifted toward the source: probe from the
+                    # first term's exit points too, so that a shadow the shift moves is marked as well
+                    shift = self._window_shift(k, win, d_body, 0)
+                    out[k][ok] = 0.5 * (out[k][ok] + self._blocked_share_of(
+                        np.full(n, k), rect, d_body, [1e-3, 0.5, 1.0 - 1e-3], shift))
         self._blocked = out
         return out
 
@@ -1180,16 +1187,61 @@ class Renderer:
                 np.concatenate([np.full(len(job[2]), job[1]) for job in jobs]), np.concatenate([job[5] for job in jobs]),
                 np.concatenate([job[6] for job in jobs]), (np.arange(points) + 0.5) / points)
         start = 0
-        for share, k, i, j, lit, _, _ in jobs:
-            share[k, i, j] = np.where(lit > 0, free[start:start + len(i)], 0.0)
+        for share, k, i, j, lit, rect, d_body in jobs:
+            f = free[start:start + len(i)]
+            win = None if self.diodes.windows is None else self.diodes.windows[k]
+            if win is not None and self._scene is not None:
+                f = self._window_visible_share(k, win, rect, d_body, (np.arange(points) + 0.5) / points)
+            share[k, i, j] = np.where(lit > 0, f, 0.0)
             start += len(i)
         return tuple(out)
 
-    def _blocked_share_of(self, diode, rect, d_body, grid):
+    def _window_shift(self, k, win, d_body, term):
+        """Return (M, 3) body-frame offsets from a point of diode ``k`` to where term ``term`` of the light toward
+        directions ``d_body`` (M, 3) leaves the upper face of its window ``win`` (:meth:`Window.exit_offsets`)."""
+        u, v, n = self.diodes.frames[k]
+        first, step = win.exit_offsets(d_body @ self.diodes.frames[k].T)
+        off = first + term * step
+        return off[:, :1] * u + off[:, 1:] * v + (win.gap_m + win.thickness_m) * n
+
+    def _window_visible_share(self, k, win, rect, d_body, grid, tail=1e-3, max_terms=12):
+        """Return (M,): for diode ``k`` under the window ``win`` and M (lit rectangle (x0, x1, y0, y1) in fractions
+        of the diode's sides, body-frame direction), the share of the light through the window that the mesh
+        leaves visible: the slab's terms (:meth:`simcore.shapes.window.Window.terms`, mean over s and p), each
+        over the part of the rectangle whose exit point for that term lies in the footprint (a rectangle) and
+        traced from those exit points (``grid`` x ``grid`` points), weighted by its term and area, up to the
+        term below ``tail`` of the first (at most ``max_terms``); 1 where no term reaches the diode."""
+        local = d_body @ self.diodes.frames[k].T
+        c, q = win.terms(local[:, 2])
+        first, step = win.exit_offsets(local)
+        size = self.diodes.sizes_m[k]
+        half = np.array(win.size_m) / 2
+        with np.errstate(divide="ignore"):
+            n_terms = np.clip(np.ceil(np.log(tail) / np.log(np.clip(q.max(axis=1), 1e-300, 1 - 1e-12))), 1, max_terms)
+        num, den = np.zeros(len(local)), np.zeros(len(local))
+        for term in range(int(n_terms.max())):
+            off = first + term * step                                                    # (M, 2) metres
+            # the points whose exit lies in the footprint: |x size + off| <= half, per axis
+            lo = np.maximum(rect[:, [0, 2]], (-half - off) / size)
+            hi = np.minimum(rect[:, [1, 3]], (half - off) / size)
+            area = np.prod(np.clip(hi - lo, 0.0, None), axis=1) * (term < n_terms)
+            on = area > 0
+            if not on.any():
+                continue
+            sub = np.column_stack([lo[on, 0], hi[on, 0], lo[on, 1], hi[on, 1]])
+            blocked = self._blocked_share_of(np.full(int(on.sum()), k), sub, d_body[on], grid,
+                                             self._window_shift(k, win, d_body[on], term))
+            w = np.mean(c[on] * q[on] ** term, axis=1) * area[on]
+            num[on] += w * (1.0 - blocked)
+            den[on] += w
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), 1.0)
+
+    def _blocked_share_of(self, diode, rect, d_body, grid, shift=None):
         """Return (M,): for M (diode index, lit rectangle (x0, x1, y0, y1) in fractions of the diode's sides,
         centred, body-frame direction) the share of the rectangle's points at fractions ``grid`` (P,) of its
         sides along x times the same along y (P x P points) whose ray toward the direction the mesh blocks;
-        one Dr.Jit launch, the points made and their hits summed in the kernel."""
+        one Dr.Jit launch, the points made and their hits summed in the kernel. ``shift`` (M, 3): body-frame
+        offsets of the rays' origins from those points (where the light leaves a window's upper face)."""
         dr, mi = self._dr, self._mi
         P = len(grid)
         P2 = P * P
@@ -1206,6 +1258,8 @@ class Renderer:
         f = self._diode_f32
         o = (self._gather3(self._v3(f["pos"]), kk) + fx * self._gather3(self._v3(f["U"]), kk)
              + fy * self._gather3(self._v3(f["V"]), kk))
+        if shift is not None:
+            o = o + self._gather3(self._v3(shift), m)
         d = self._gather3(self._v3(d_body), m)
         hit = self._scene.ray_test(mi.Ray3f(o, d))
         blocked = dr.block_sum(dr.select(hit, 1.0, 0.0), P2)
