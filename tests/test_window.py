@@ -374,3 +374,13 @@ def test_visible_share_under_a_window_traces_each_term_from_its_exit_point():
     # the straight rays' share (what the reference took before it knew the window) is far off: all blocked
     assert rend._blocked_share_of(np.array([0]), whole, local, grid)[0] == 1.0
 
+
+def test_self_shadowing_counts_the_window_as_the_diodes_own_optics():
+    # The example's diode sits alone on a flat plate: nothing shades it, so its traced response over the sphere
+    # equals its own optics' (well + window) and the self-shadowing study reports no loss; without the window in
+    # its own optics the study would read the slab's Fresnel loss (14.5 % of the response at nside 4) as shadowing.
+    from simcore.studies.aperture import self_shadowing
+    (row,) = self_shadowing(EXAMPLE, nside=4, samples=64)
+    assert abs(row["response_loss"]) <= 3 * row["response_loss_se"] + 1e-6
+    assert row["shadowed_fov_fraction"] == 0.0
+

@@ -54,6 +54,7 @@ from simcore.render.walls import TabulatedResponse, WallMaterial, trace_well
 from simcore.sensor.chain import DIODES
 from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture
 from simcore.shapes.occlusion import direct_visibility
+from simcore.shapes.window import WindowedWell
 from simcore.studies.coverage import CLASSES, coverage_classes, coverage_fractions, pixel_directions
 
 MM = 1e-3
@@ -381,14 +382,15 @@ def self_shadowing(config, *, nside=8, samples=64, seed=0, loss_threshold=0.01, 
     d = healpix_directions(nside)
     pix_sr = 4 * np.pi / len(d)
     frames = cfg.frames
-    own = np.stack([a.response(d @ f.T) for a, f in zip(cfg.apertures, frames)], axis=1)      # (P, K)
+    # each diode's own optics: its well, under its window when it has one (simcore.shapes.window)
+    own = np.stack([(a if w is None else WindowedWell(a, w)).response(d @ f.T)
+                    for a, w, f in zip(cfg.apertures, cfg.windows, frames)], axis=1)      # (P, K)
     if reference == "traced":
         ds_all = DiodeSurfaces.from_config(cfg)
         for k in range(cfg.n_diodes):
             parts = mount_meshes(cfg, k)
             mesh_k = trimesh.util.concatenate([parts[p] for p in ("floor", "well") if p in parts])
-            ds = DiodeSurfaces(ds_all.positions_m[k:k + 1], ds_all.frames[k:k + 1], ds_all.sizes_m[k:k + 1],
-                          (cfg.apertures[k],))
+            ds = ds_all.subset([k])
             rk = Renderer(ds, mesh_k, e_sun_w_m2=1.0, variant=variant)
             own[:, k] = rk.render(d, None, direct_samples=int(samples), albedo=False, seed=int(seed)).direct_w_m2[:, 0]
     elif reference != "analytic":
