@@ -570,7 +570,8 @@ def _validate_mounts(diodes, body, mount):
                 f"{height / MM:.2f} mm above the {d.panel} panel, "
                 f"more than the {body.clearance_m / MM:g} mm launch-pod clearance; the FOV {d.fov_deg:g} deg needs a "
                 f"well {d.aperture.height_m / MM:.2f} mm tall and {d.aperture.opening_x_m / MM:.2f} mm wide - "
-                "choose a smaller FOV or tilt, thinner walls, or raise body.clearance_mm")
+                "choose " + ("a lower or thinner window (gap_mm, thickness_mm), " if d.window is not None else "")
+                + "a smaller FOV or tilt, thinner walls, or raise body.clearance_mm")
         fp = _footprint(d, body, mount)
         half = body.panel_half_extent_m(d.panel)
         if np.any(np.abs(fp) > half + 1e-12):
@@ -583,6 +584,26 @@ def _validate_mounts(diodes, body, mount):
                 raise ConfigError(f"diodes {other.index} ({other.name}) and {d.index} ({d.name}) overlap on the "
                                   f"{d.panel} panel; move one of them (at_mm) apart")
         prints.append((d, fp))
+    _validate_windows(diodes, body)
+
+
+def _validate_windows(diodes, body):
+    """Refuse two windows that overlap in their panel's plane (two slabs cannot share the space above it)."""
+    shapes = []
+    sq = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+    for d in diodes:
+        if d.window is None:
+            continue
+        _, t, a = panel_axes(d.panel)
+        u, v, _ = d.frame_body
+        hx, hy = np.array(d.window.size_m) / 2
+        pts = d.position_body_m + sq[:, :1] * hx * u + sq[:, 1:] * hy * v - body.panel_centre_m(d.panel)
+        poly = np.array(convex_hull([tuple(p) for p in np.round(np.column_stack([pts @ t, pts @ a]), 12)]))
+        for other, opoly in shapes:
+            if other.panel == d.panel and _convex_overlap(poly, opoly):
+                raise ConfigError(f"the windows of diodes {other.index} ({other.name}) and {d.index} ({d.name}) overlap "
+                                  f"on the {d.panel} panel; give them smaller size_mm or move the diodes apart")
+        shapes.append((d, poly))
 
 
 @dataclass(frozen=True, eq=False)

@@ -256,6 +256,20 @@ def test_bad_window_is_a_one_line_error_before_any_output(tmp_path, capsys, monk
     assert words in capsys.readouterr().err
 
 
+def test_overlapping_windows_are_a_one_line_error(tmp_path, capsys):
+    path = tmp_path / "o.toml"
+    # two flat diodes 20 mm apart on the +x panel under 30 mm windows: the slabs would share 10 mm
+    win = "window = {index = 1.5, thickness_mm = 0.5, gap_mm = 0.6, size_mm = [30, 30]}\n"
+    path.write_text("".join(f'[[diode]]\nname = "{n}"\npanel = "+x"\nnormal = [1, 0, 0]\nat_mm = [0, {z}]\n'
+                            f'fov_deg = 70\n{win}' for n, z in (("a", 0), ("b", 20))))
+    assert main(["response", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "the windows of diodes 0 (a) and 1 (b) overlap on the +x panel" in err, err
+    path.write_text(path.read_text().replace("at_mm = [0, 20]", "at_mm = [0, 31]"))   # 1 mm apart: fine
+    assert len(SatelliteConfig.load(path).diodes) == 2
+    assert len(err.splitlines()) == 1
+
+
 def test_layout_window_covers_every_diode_of_the_layout(tmp_path):
     path = tmp_path / "l.toml"
     path.write_text('[layout]\npattern = "thesis14"\ntilt_deg = 20\nfov_deg = 70\n'
