@@ -1671,6 +1671,19 @@ class Renderer:
              + fy[..., None] * base["V"][:, None, None])
         d = np.broadcast_to(dirs[:, :, None], o.shape)
         mi = self._mi
+        if self._win is not None:
+            # under a window the light leaves its upper face shifted toward the source: probe from the first
+            # term's exit points as well (tasks without a window: the same points twice)
+            w = base["win"]
+            n_i, th, gap, has = w[:, None, 0], w[:, None, 1], w[:, None, 2], w[:, None, 8] > 0.5
+            dn = np.maximum(dd[..., 2], 1e-12)
+            ct = np.sqrt(np.maximum(1.0 - (dd[..., 0] ** 2 + dd[..., 1] ** 2) / n_i ** 2, 1e-24))
+            reach = np.where(has, gap / dn + th / (n_i * ct), 0.0)                                  # (T, D)
+            shift = ((reach * dd[..., 0])[..., None] * fr[:, None, 0] + (reach * dd[..., 1])[..., None] * fr[:, None, 1]
+                     + np.where(has, gap + th, 0.0)[..., None] * fr[:, None, 2])
+            o = np.concatenate([o, o + shift[:, :, None]], axis=2)
+            d = np.concatenate([d, d], axis=2)
+            P = 2 * P
         ray = mi.Ray3f(self._v3(o.reshape(-1, 3)), self._v3(d.reshape(-1, 3)))
         blocked = np.asarray(self._scene.ray_test(ray).numpy(), bool).reshape(T, D, P)
         seen = np.broadcast_to(((lit > 0) & (x1 - x0 > 2 * inset) & (y1 - y0 > 2 * inset))[..., None], blocked.shape)
