@@ -235,7 +235,9 @@ def cmd_response(args):
         for r in resp:
             one = base if len(resp) == 1 else base.with_name(f"{base.stem}_d{r.index}{base.suffix}")
             plot_angular_response(r.theta_deg, {"traced": r.response, "cos": r.cosine, "eq. 4.15": r.eq415,
-                                                "well overlap": r.well, f"Kelly {r.kelly_factor:.3g}": r.kelly},
+                                                ("well overlap" if cfg.diodes[r.index].window is None
+                                                 else "well + window, closed form"): r.well,
+                                                f"Kelly {r.kelly_factor:.3g}": r.kelly},
                                   errors={"traced": r.response_se}, fov_deg=None, cutoff_deg=None,
                                   title=f"diode {r.index} ({r.name}), Sun in its {r.plane}-n plane", path=one)
             if r.map_response is not None:
