@@ -68,6 +68,14 @@ finite here (``SUN_ANGULAR_RADIUS_RAD`` when the renderer's Sun is a point): a m
 a point Sun would be a delta that no sampling meets. All-black scenes build none of this and
 report ``reflected`` exactly 0 at no cost.
 
+Windows (issue 14; ``DiodeSurfaces.windows``, :mod:`simcore.shapes.window`): a cover glass over a diode is
+traced per lane by ``Renderer._window_exit``: the slab's k-th term (k internal round trips) leaves its upper
+face at a closed-form point; k is drawn among the terms whose exit stays in the footprint in proportion to
+their Fresnel weight (mean over the s and p polarisations, each exact), the lane carries their sum, and the
+segment from the diode to the window and the ray on from the exit point are traced (direct and albedo; the
+first segment of a reflected path likewise). The window is no occluder or reflector itself. Without windows
+none of this code runs: the kernels are the ones before windows existed.
+
 Sums are formed per (epoch, diode) in float64 in numpy from the per-lane
 float32 values. Random numbers come from ``mi.sample_tea_32`` keyed by
 (seed, global epoch index, diode, estimator, round, group): a given seed gives
