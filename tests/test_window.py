@@ -183,6 +183,35 @@ def test_closed_form_windowed_well_against_a_point_by_point_sum(size_mm, gap_mm,
         assert model.response(d) == pytest.approx(total * np.cos(th), abs=3e-3 * np.cos(th) + 1e-12), (theta_deg, phi_deg)
 
 
+def test_kernel_form_equals_the_closed_form_and_runs_in_the_albedo_kernel():
+    # WindowedWell.kernel (generic arrays, for the analytic model's Dr.Jit albedo kernel) against its numpy
+    # response on 20000 random directions, three windows (one with a well and absorption, one small); then the
+    # albedo of the windowed thesis14 layout from the Dr.Jit kernel (double precision) against the numpy backend
+    from simcore.radiometry.analytic import BodyBox, diode_irradiance
+    from simcore.radiometry.response import NUMPY_OPS
+    from simcore.shapes.aperture import WellAperture
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(20000, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    for well, win in [(WellAperture.bare(), Window(1.5, 1e-3, 0.5e-3, (40e-3, 40e-3))),
+                      (WellAperture.bare(), Window(1.5, 1e-3, 0.2e-3, (4e-3, 4e-3))),
+                      (WellAperture.design(70), Window(1.7, 0.5e-3, 0.6e-3, (6e-3, 6.5e-3), 300.0))]:
+        m = WindowedWell(well, win)
+        np.testing.assert_allclose(m.kernel(d[:, 0], d[:, 1], d[:, 2], NUMPY_OPS), m.response(d), rtol=1e-12,
+                                   atol=1e-15)
+    cfg = SatelliteConfig.from_dict({"layout": {"pattern": "thesis14", "tilt_deg": 20, "fov_deg": 70, "window": {
+        "index": 1.5, "thickness_mm": 0.5, "gap_mm": 0.5, "size_mm": [6.5, 6.5]}}})
+    resps = [WindowedWell(x.aperture, x.window) for x in cfg.diodes]
+    r_sat = np.array([[7.0e6, 0.0, 0.0], [0.0, 5.0e6, 4.9e6]])
+    r_sun = np.array([[1.0e11, 1.0e11, 0.0], [1.5e11, 0.0, 1.0e10]])
+    R = np.stack([np.eye(3), np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])])
+    kw = dict(direct=False, body=BodyBox.from_config(cfg))
+    ref = diode_irradiance(r_sat, r_sun, R, cfg.frames, resps, backend="numpy", **kw).albedo_w_m2
+    got = diode_irradiance(r_sat, r_sun, R, cfg.frames, resps, backend="drjit", precision="double", **kw).albedo_w_m2
+    assert ref.max() > 50.0
+    np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-9)
+
+
 # ---- 4. every configuration without a window renders exactly as before ---------------------------------------
 def test_without_windows_no_window_arrays_and_the_old_kernels(monkeypatch):
     cfg = SatelliteConfig.load("tilt20_fov70")

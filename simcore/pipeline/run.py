@@ -291,10 +291,10 @@ class PreparedRun:
     def _windowed_analytic(self, res, sl, reflectivity_map, direct, mesh, albedo=True):
         """Replace in ``res`` (the analytic result of epochs ``sl``) the columns of the diodes under a window by
         the model with the window: each integrand times the slab's closed-form transmittance with its
-        footprint (:class:`simcore.shapes.window.WindowedWell`, numpy backend). The direct Sun without the
-        body box (where the box may shade such a diode, :meth:`window_shadow` leaves it out of the check),
-        the albedo with it at the diode's centre, as for the other diodes. Numpy only (it may run beside the
-        renderer in the worker thread), but for the traced :attr:`visibility` that ``mesh`` asks for."""
+        footprint (:class:`simcore.shapes.window.WindowedWell`). The direct Sun without the body box (where the
+        box may shade such a diode, :meth:`window_shadow` leaves it out of the check), numpy only (it may run
+        beside the renderer in the worker thread); the albedo with the box at the diode's centre, as for the
+        other diodes, in the Dr.Jit kernel (``WindowedWell.kernel``)."""
         cfg, g = self.config, self.geometry
         idx = [k for k, w in enumerate(cfg.windows) if w is not None]
         resps = [WindowedWell(cfg.diodes[k].aperture, cfg.diodes[k].window) for k in idx]
@@ -306,7 +306,7 @@ class PreparedRun:
                       sun_angular_radius_rad=self.sun_angular_radius_rad)
         args = (g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl], frames, resps)
         if direct:
-            res.direct_w_m2[:, idx] = diode_irradiance(*args, albedo=False, **common).direct_w_m2
+            res.direct_w_m2[:, idx] = diode_irradiance(*args, albedo=False, backend="numpy", **common).direct_w_m2
         if not albedo:
             return
         vis = None

@@ -305,6 +305,7 @@ class _DrJitOps:
         self.maximum = dr.maximum
         self.minimum = dr.minimum
         self.where = dr.select
+        self.sqrt, self.exp, self.log, self.floor = dr.sqrt, dr.exp, dr.log, dr.floor   # (the window's kernel)
         self.tiny = tiny
 
 

@@ -32,6 +32,7 @@ class _NumpyOps:
     maximum = staticmethod(np.maximum)
     minimum = staticmethod(np.minimum)
     where = staticmethod(np.where)
+    sqrt, exp, log, floor = staticmethod(np.sqrt), staticmethod(np.exp), staticmethod(np.log), staticmethod(np.floor)
     tiny = 1e-300
 
 
