@@ -193,12 +193,12 @@ def test_a_partial_run_of_an_older_chunk_layout_is_refused_before_any_work(tmp_p
     assert len(chunks) == 2
     first = os.path.join(out + ".partial", chunks[0])
     with np.load(first) as z:
-        arrays = {k: z[k] for k in z.files if k != "albedo_mesh"}
+        arrays = {k: z[k] for k in z.files if k != "analytic_albedo_native_mesh"}
     with open(first, "wb") as f:
         np.savez(f, **arrays)
     calls.clear()
     capsys.readouterr()
     assert cli.main(SMALL + ["-o", out]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "older sunsim" in err[0] and "albedo_mesh" in err[0], err
+    assert len(err) == 1 and "older sunsim" in err[0] and "analytic_albedo_native_mesh" in err[0], err
     assert calls == [] and len(os.listdir(out + ".partial")) >= 2 and not os.path.exists(out)
