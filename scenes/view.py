@@ -168,10 +168,12 @@ def close_up_framing(config):
     Framed on the body and the parts near it (an antenna, a baffle); a part reaching further than
     ``CLOSE_PART_REACH`` x the body's half extents (a deployed wing) is cropped at that reach, so that
     the body, and the diodes on it, fill the panel instead of shrinking to a few pixels beside the
-    wings. The camera stays outside every part: 3 x the farthest reach from the centre.
+    wings; a diode on a part is kept in view. The camera stays outside every part: 3 x the farthest
+    reach from the centre.
     """
     body_half = np.asarray(config.body.size_m) / 2.0
     pts = [body_half] + [np.minimum(np.abs(p.vertices_m), CLOSE_PART_REACH * body_half) for p in config.parts]
+    pts += [np.abs(d.position_body_m) + 0.01 for d in config.diodes if d.part is not None]   # diodes on parts too
     ext = np.vstack(pts).max(axis=0)
     # seen 25 deg from the horizontal, the satellite spans ext_z cos 25 + ext_xy sin 25 above and below the
     # centre; it fills 72 % of the panel's height, leaving room for the legend, the panel titles and the caption
