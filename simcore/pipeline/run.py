@@ -41,7 +41,7 @@ from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.environment.maps import named_map
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM, CloudWeather
-from simcore.pipeline.preflight import check_map, check_numbers, check_variant, tle_age_note
+from simcore.pipeline.preflight import REFLECTED_SAMPLES, check_map, check_numbers, check_variant, tle_age_note
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
 from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
 
@@ -70,6 +70,7 @@ class RunOptions:
     rel_se_albedo: float = 0.01
     direct_samples: int = 1024
     albedo_samples: int = 256
+    reflected_samples: int = REFLECTED_SAMPLES    # paths per diode-epoch for the reflected component (4 m^2)
     dead: tuple = ()
     extra_flat_diodes: bool = False    # the two optional flat diodes on top and bottom (diodes 14, 15)
     variant: str = None
@@ -97,6 +98,8 @@ class RunOptions:
             d.pop("cloud_scale_km")
         elif d["cloud_scale_km"] is None:   # the default length named or not: one run, one digest
             d["cloud_scale_km"] = CLOUD_SCALE_KM
+        if d["reflected_samples"] == REFLECTED_SAMPLES:     # runs at the default keep the digest they always had
+            d.pop("reflected_samples")
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
         for k in ("config", "tle", "attitude_file"):
             v = d[k]
@@ -305,7 +308,8 @@ class PreparedRun:
         res = self.renderer.render(
             *args, sun_dir_earth_body=self.earth_sun_dir_body(sl), earth_sun_scale=self.earth_sun_scale(sl),
             seed=o.seed, epoch_offset=start, direct_samples=o.direct_samples, albedo_samples=o.albedo_samples,
-            rel_se_direct=o.rel_se_direct, rel_se_albedo=o.rel_se_albedo, progress=None)
+            rel_se_direct=o.rel_se_direct, rel_se_albedo=o.rel_se_albedo, reflected_samples=o.reflected_samples,
+            progress=None)
         plain = np.full((stop - start, len(self.config.diodes), 3), np.nan)
         pick = np.flatnonzero(plain_check_epochs(o.seed, len(self.epochs))[sl])
         if len(pick):
@@ -497,6 +501,7 @@ def build_dataset(study, data, variant):
         "tle": tle,
         "reflectivity_map": study.map.name,
         "seed": int(o.seed),
+        "reflected_samples": int(o.reflected_samples),
         "variant": variant,
         "options": json.dumps(o.spec(), sort_keys=True),
         "software": json.dumps(_versions(), sort_keys=True),

@@ -33,7 +33,7 @@ import functools
 
 import numpy as np
 
-from scenes.config import panel_axes
+from scenes.config import body_side_normal
 
 from simcore import _llvm
 from simcore.environment import eclipse as _eclipse
@@ -469,7 +469,7 @@ class BodyBox:
     def from_config(cls, config):
         """Return the body box of a ``scenes.config.SatelliteConfig``."""
         return cls(tuple(float(x) / 2 for x in config.body.size_m), np.asarray(config.positions_m, float),
-                   np.array([panel_axes(d.panel)[0] for d in config.diodes], float))
+                   np.array([body_side_normal(d, config.body) for d in config.diodes], float))
 
 
 def solar_disc_offsets(radius_rad, rings=3):
