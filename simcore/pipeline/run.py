@@ -317,8 +317,8 @@ class PreparedRun:
                                        albedo=False, hint=False, reflected=False,
                                        direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
             plain[pick] = np.stack([sub.direct_w_m2, sub.direct_se_w_m2, sub.direct_dof], axis=-1)
-        native_albedo = self.analytic(sl, self.map, direct=False).albedo_w_m2
-        native_mesh = self.analytic(sl, self.map, direct=False, mesh=True).albedo_w_m2
+        native = self.analytic(sl, self.map, direct=False, mesh=True)    # box-only and with the traced shares
+        native_albedo, native_mesh = native.albedo_box_w_m2, native.albedo_w_m2
         fine = self.analytic(sl, self.map_refined, direct=False, mesh=True)
         native_direct = direct_ref.result().direct_w_m2
         out = {
@@ -766,9 +766,8 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     fine, native_mesh = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
     mesh, mesh_err = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
     for s, e in chunk_ranges(n, chunk):
-        a = study.analytic(slice(s, e), study.map)
-        native[s:e, :, 0], native[s:e, :, 1] = a.direct_w_m2, a.albedo_w_m2
-        native_mesh[s:e] = study.analytic(slice(s, e), study.map, direct=False, mesh=True).albedo_w_m2
+        a = study.analytic(slice(s, e), study.map, mesh=True)
+        native[s:e, :, 0], native[s:e, :, 1], native_mesh[s:e] = a.direct_w_m2, a.albedo_box_w_m2, a.albedo_w_m2
         a = study.analytic(slice(s, e), study.map_refined, direct=False, mesh=True)
         fine[s:e], mesh[s:e], mesh_err[s:e] = a.albedo_w_m2, a.albedo_mesh_w_m2, a.albedo_visibility_error_w_m2
         if log:
