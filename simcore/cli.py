@@ -783,6 +783,11 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("sunsim: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (``sunsim validate RUN | head``): stop quietly, as other Unix tools do;
+        # stdout now points at /dev/null so that the interpreter's final flush does not fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":
