@@ -43,8 +43,10 @@ BODY_DEFAULTS = {"size_mm": [100.0, 100.0, 227.0], "rail_mm": 8.5, "clearance_mm
 MOUNT_DEFAULTS = {"wall_mm": 0.5, "floor_mm": 0.5, "base_mm": 0.5, "material": "black"}
 LAYOUT_DEFAULTS = {"pattern": None, "tilt_deg": None, "fov_deg": None, "extra_flat_diodes": False,
                    "triangle_mm": [22.0, 40.0], "extra_offset_mm": 25.0, "window": None}
-DIODE_KEYS = ("name", "panel", "normal", "az_deg", "el_deg", "at_mm", "fov_deg", "well", "window")
+DIODE_KEYS = ("name", "panel", "part", "normal", "az_deg", "el_deg", "at_mm", "fov_deg", "well", "window")
 WINDOW_KEYS = ("index", "thickness_mm", "gap_mm", "size_mm", "absorption_per_mm")
+# A diode on a part sits on the part's surface: its at_mm may miss the surface by this much (CAD rounding)
+ON_SURFACE_TOLERANCE_M = 0.5e-3
 WELL_KEYS = ("height_mm", "opening_mm")
 TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part")
 PART_KEYS = ("name", "file", "unit", "box_mm", "translate_mm", "rotate_deg", "hinge", "material")
@@ -162,6 +164,15 @@ class Part:
     faces: np.ndarray
     material: object = DEFAULT_MATERIAL
     source: str = ""
+    # the placement: body = rotation @ own + translation_m, "own" being the part's coordinates (its file's, in
+    # metres, or its box's); local_vertices_m the vertices there (diodes on the part are given in them)
+    rotation: np.ndarray = None
+    translation_m: np.ndarray = None
+    local_vertices_m: np.ndarray = None
+
+    def to_body(self, points_own_m):
+        """Return points (M, 3) given in the part's own coordinates (m) in the body frame (m)."""
+        return np.asarray(points_own_m, float) @ self.rotation.T + self.translation_m
 
 
 def _rotation_xyz(angles_deg):
@@ -239,8 +250,11 @@ def _build_part(index, table, base_dir, where):
             raise ConfigError(f"{here}: box_mm must be three positive lengths in mm, got {table['box_mm']!r}")
         box = trimesh.creation.box(extents=size * MM)
         verts, faces, source = np.asarray(box.vertices, float), np.asarray(box.faces, np.int64), "box"
-    verts = verts @ _rotation_xyz(_vector3(table.get("rotate_deg", [0, 0, 0]), f"{here} rotate_deg")).T
-    verts = verts + _vector3(table.get("translate_mm", [0, 0, 0]), f"{here} translate_mm") * MM
+    local = verts
+    rotation = _rotation_xyz(_vector3(table.get("rotate_deg", [0, 0, 0]), f"{here} rotate_deg"))
+    translation = _vector3(table.get("translate_mm", [0, 0, 0]), f"{here} translate_mm") * MM
+    verts = verts @ rotation.T
+    verts = verts + translation
     if "hinge" in table:
         hinge = table["hinge"]
         if not isinstance(hinge, dict):
@@ -256,13 +270,16 @@ def _build_part(index, table, base_dir, where):
             angle = np.nan
         if not np.isfinite(angle):
             raise ConfigError(f"{here}: the hinge needs angle_deg, a finite number of degrees (the deployed angle)")
-        verts = (verts - point) @ _rotation_axis_angle(axis, angle).T + point
+        turn = _rotation_axis_angle(axis, angle)
+        verts = (verts - point) @ turn.T + point
+        rotation, translation = turn @ rotation, turn @ (translation - point) + point
     reach = float(np.max(np.linalg.norm(verts, axis=1)))
     if reach > PART_EXTENT_RANGE_M[1]:
         raise ConfigError(f"{here}: once placed, the part reaches {reach:.4g} m from the body centre, beyond the "
                           f"{PART_EXTENT_RANGE_M[1]:g} m a spacecraft part may; translate_mm and point_mm are in mm")
     material = check_material(table.get("material", DEFAULT_MATERIAL), f"{here} material")
-    return Part(name=name, vertices_m=verts, faces=faces, material=material, source=source)
+    return Part(name=name, vertices_m=verts, faces=faces, material=material, source=source, rotation=rotation,
+                translation_m=translation, local_vertices_m=local)
 
 
 def _ray_distances(vertices, faces, origins, dirs):
@@ -321,8 +338,11 @@ class MountedDiode:
     position_body_m: np.ndarray
     aperture: WellAperture
     fov_deg: float
-    panel: str
-    at_m: np.ndarray  # (lateral, along) position of the mount's foot on the panel, metres
+    panel: str        # None for a diode on a part
+    at_m: np.ndarray  # (lateral, along) position of the mount's foot on the panel, metres; on a part: (x, y, z) in
+    #                   the part's own coordinates
+    part: str = None  # the [[part]] it sits on (instead of a panel)
+    surface_normal_body: np.ndarray = None   # on a part: the outward normal of the part's surface under it
     window: Window = None  # a cover glass / filter over the diode (simcore.shapes.window), or None
 
     def mount_corners_m(self, mount):
@@ -438,14 +458,93 @@ def expand_layout(layout, where="[layout]"):
     return tables
 
 
-def _build_diode(index, table, body, mount):
+def _point_triangle_distances(point, triangles):
+    """Return (distance (F,), unit normal (F, 3)) from a point (3,) to each triangle (F, 3, 3) and the
+    triangles' normals (by their winding; zero for a degenerate triangle)."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    n = np.cross(b - a, c - a)
+    size = np.linalg.norm(n, axis=1)
+    ok = size > 0
+    unit = n / np.where(ok, size, 1.0)[:, None]
+    height = np.einsum("fj,fj->f", point - a, unit)
+    q = point - height[:, None] * unit                       # the point projected onto each triangle's plane
+    inside = ok.copy()
+    for x, y in ((a, b), (b, c), (c, a)):
+        inside &= np.einsum("fj,fj->f", np.cross(y - x, q - x), n) >= 0
+
+    def to_segment(x, y):
+        e = y - x
+        t = np.clip(np.einsum("fj,fj->f", point - x, e) / np.maximum(np.einsum("fj,fj->f", e, e), 1e-300), 0, 1)
+        return np.linalg.norm(point - (x + t[:, None] * e), axis=1)
+    edge = np.minimum(np.minimum(to_segment(a, b), to_segment(b, c)), to_segment(c, a))
+    return np.where(inside, np.abs(height), edge), unit
+
+
+def _build_part_diode(where, table, part, mount, aperture):
+    """Return (normal, surface normal, centre) in the body frame and the point (m, the part's own coordinates)
+    of a diode on a part: at ``at_mm`` on the part's surface, its ``normal`` in the part's coordinates; its
+    floor plate (and well) stand on the surface, no ramp: the lowest corner of the floor touches it."""
+    if "az_deg" in table or "el_deg" in table:
+        raise ConfigError(f"{where}: on a part, give the normal as normal = [x, y, z] in the part's own "
+                          "coordinates (az_deg/el_deg are for panels)")
+    if "normal" not in table:
+        raise ConfigError(f"{where}: give normal = [x, y, z], the diode's normal in part {part.name!r}'s own "
+                          "coordinates (as in its file or box)")
+    n = _vector3(table["normal"], f"{where} normal")
+    if abs(np.linalg.norm(n) - 1.0) > 1e-5:
+        raise ConfigError(f"{where}: normal {n.tolist()} is not a unit vector (norm {np.linalg.norm(n):.6f}); "
+                          "normalise it")
+    n = n / np.linalg.norm(n)
+    at = _vector3(table.get("at_mm"), f"{where} at_mm (on a part: [x, y, z] in mm, the part's own coordinates)") * MM
+    tri = part.local_vertices_m[part.faces]
+    dist, unit = _point_triangle_distances(at, tri)
+    near = np.flatnonzero(dist <= dist.min() + 1e-9)
+    best = near[np.argmax(unit[near] @ n)]                   # at an edge: the face the normal leans out of
+    if dist[best] > ON_SURFACE_TOLERANCE_M:
+        raise ConfigError(f"{where}: at_mm = {np.round(at / MM, 3).tolist()} lies {dist[best] / MM:.2f} mm from the "
+                          f"surface of part {part.name!r} (at most {ON_SURFACE_TOLERANCE_M / MM:g} mm); give a point "
+                          "on its surface in the part's own coordinates (as in its file or box, before rotate_deg, "
+                          "translate_mm and hinge)")
+    surface = unit[best]
+    if n @ surface <= 0:
+        raise ConfigError(f"{where}: the normal {n.tolist()} points into part {part.name!r} (its surface there "
+                          f"faces {np.round(surface, 4).tolist()}, part coordinates); turn the diode outward")
+    foot = at - (at - tri[best, 0]) @ surface * surface        # the point moved onto the surface's plane
+    normal_b, surface_b = part.rotation @ n, part.rotation @ surface
+    frame = diode_frame(normal_b / np.linalg.norm(normal_b))
+    u, v, nb = frame
+    hx, hy = _outer_half_m(aperture, mount)
+    lift = hx * abs(u @ surface_b) + hy * abs(v @ surface_b) + mount.floor_m * (nb @ surface_b)
+    centre = part.to_body(foot[None])[0] + lift * surface_b
+    return frame, surface_b, centre, at
+
+
+def _build_diode(index, table, body, mount, parts=()):
     where = f"diode {index} ({table.get('name', 'unnamed')})"
     if not isinstance(table, dict):
         raise ConfigError(f"{where}: each [[diode]] must be a table")
     _check_keys(table, DIODE_KEYS, where)
+    if "part" in table:
+        if "panel" in table:
+            raise ConfigError(f"{where}: give either panel (a face of the body) or part (a [[part]] by name), not both")
+        names = [p.name for p in parts]
+        if table["part"] not in names:
+            close = difflib.get_close_matches(str(table["part"]), names, n=2, cutoff=0.5)
+            raise ConfigError(f"{where}: unknown part {table['part']!r}; "
+                              + (f"the parts are {', '.join(map(repr, names))}" if names else "no [[part]] is given")
+                              + (f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""))
+        part = parts[names.index(table["part"])]
+        aperture, fov = _aperture_for(table.get("fov_deg"), table.get("well"), where)
+        window = _window_for(table.get("window"), aperture, where)
+        frame, surface, centre, at = _build_part_diode(where, table, part, mount, aperture)
+        for arr in (frame, surface, centre, at):
+            arr.flags.writeable = False
+        return MountedDiode(index=index, name=str(table.get("name", f"d{index}")), normal_body=frame[2],
+                            frame_body=frame, position_body_m=centre, aperture=aperture, fov_deg=fov, panel=None,
+                            at_m=at, part=part.name, surface_normal_body=surface, window=window)
     panel = table.get("panel")
     if panel is None:
-        raise ConfigError(f"{where}: give the mounting panel, one of {', '.join(PANELS)}")
+        raise ConfigError(f"{where}: give the mounting panel, one of {', '.join(PANELS)} (or part = a [[part]]'s name)")
     p, _, _ = panel_axes(panel)
     if "normal" in table:
         if "az_deg" in table or "el_deg" in table:
@@ -547,8 +646,8 @@ def _convex_overlap(poly_a, poly_b):
 
 
 def mount_height_m(diode, body, mount):
-    """Return the height of a diode's mount (ramp + floor + well, and its window) above its panel (m)."""
-    p, _, _ = panel_axes(diode.panel)
+    """Return the height of a diode's mount (ramp + floor + well, and its window) above its panel, or above the
+    part's surface for a diode on a part (m)."""
     bottom, top = diode.mount_corners_m(mount)
     pts = [bottom, top]
     if diode.window is not None:
@@ -557,12 +656,31 @@ def mount_height_m(diode, body, mount):
         hx, hy = np.array(w.size_m) / 2
         sq = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
         pts.append(diode.position_body_m + (w.gap_m + w.thickness_m) * n + sq[:, :1] * hx * u + sq[:, 1:] * hy * v)
+    if diode.part is not None:
+        p = diode.surface_normal_body
+        return float(np.max((np.vstack(pts) - bottom[np.argmin(bottom @ p)]) @ p))
+    p, _, _ = panel_axes(diode.panel)
     return float(np.max((np.vstack(pts) - body.panel_centre_m(diode.panel)) @ p))
+
+
+def body_side_normal(diode, body):
+    """Return the unit normal (3,) of a plane the body box lies behind as seen from the diode: directions with
+    a non-negative component along it cannot meet the body. A panel diode: its panel's outward normal; a
+    diode on a part: the body axis along which it lies farthest beyond the box's face plane."""
+    if diode.part is None:
+        return panel_axes(diode.panel)[0]
+    beyond = np.abs(diode.position_body_m) - np.asarray(body.size_m) / 2.0
+    axis = int(np.argmax(beyond))
+    out = np.zeros(3)
+    out[axis] = np.sign(diode.position_body_m[axis])
+    return out
 
 
 def _validate_mounts(diodes, body, mount):
     prints = []
     for d in diodes:
+        if d.part is not None:          # on a part: no panel, no launch-pod clearance of the body's faces
+            continue
         height = mount_height_m(d, body, mount)
         if height > body.clearance_m + 1e-12:
             raise ConfigError(
@@ -588,11 +706,12 @@ def _validate_mounts(diodes, body, mount):
 
 
 def _validate_windows(diodes, body):
-    """Refuse two windows that overlap in their panel's plane (two slabs cannot share the space above it)."""
+    """Refuse two windows that overlap in their panel's plane (two slabs cannot share the space above it); diodes
+    on parts are not compared."""
     shapes = []
     sq = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
     for d in diodes:
-        if d.window is None:
+        if d.window is None or d.part is not None:
             continue
         _, t, a = panel_axes(d.panel)
         u, v, _ = d.frame_body
@@ -681,13 +800,13 @@ class SatelliteConfig:
         tables += explicit
         if not tables:
             raise ConfigError(f"{where}: no diodes; give a [layout] or [[diode]] tables (see scenes/FORMAT.md)")
-        diodes = tuple(_build_diode(i, t, body, mount) for i, t in enumerate(tables))
-        _validate_mounts(diodes, body, mount)
         part_tables = data.get("part", [])
         if not isinstance(part_tables, list):
             raise ConfigError(f"{where}: parts are given as [[part]] tables")
         base_dir = Path(source).parent if source else Path.cwd()
         parts = tuple(_build_part(i, t, base_dir, where) for i, t in enumerate(part_tables))
+        diodes = tuple(_build_diode(i, t, body, mount, parts) for i, t in enumerate(tables))
+        _validate_mounts(diodes, body, mount)
         _validate_parts(parts, diodes)
         cfg = cls(name=str(data.get("name", "custom")), description=str(data.get("description", "")), body=body,
                   mount=mount, diodes=diodes, dead=np.zeros(len(diodes), bool), layout=layout, source=source,

@@ -77,13 +77,14 @@ def mount_meshes(config, k):
     ap, frame, centre = d.aperture, d.frame_body, d.position_body_m
     outer = np.array([ap.opening_x_m, ap.opening_y_m]) / 2.0 + m.wall_m
     parts = {}
-    p, _, _ = panel_axes(d.panel)
-    bottom, _ = d.mount_corners_m(m)
-    panel_offset = p @ body.panel_centre_m(d.panel)
-    foot = bottom - np.outer(bottom @ p - panel_offset, p)
-    ramp = trimesh.convex.convex_hull(np.vstack([bottom, foot]))
-    if ramp.volume > 1e-15:
-        parts["ramp"] = ramp
+    if d.part is None:              # a diode on a part stands on the part's surface: no ramp
+        p, _, _ = panel_axes(d.panel)
+        bottom, _ = d.mount_corners_m(m)
+        panel_offset = p @ body.panel_centre_m(d.panel)
+        foot = bottom - np.outer(bottom @ p - panel_offset, p)
+        ramp = trimesh.convex.convex_hull(np.vstack([bottom, foot]))
+        if ramp.volume > 1e-15:
+            parts["ramp"] = ramp
     parts["floor"] = _ring_mesh(outer, [ap.diode_x_m / 2.0, ap.diode_y_m / 2.0], -m.floor_m, 0.0, frame, centre)
     if ap.height_m > 0:
         parts["well"] = _ring_mesh(outer, [ap.opening_x_m / 2.0, ap.opening_y_m / 2.0], 0.0, ap.height_m,

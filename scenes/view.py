@@ -39,6 +39,7 @@ WIDE_AZIMUTH_FROM_SUN_DEG = 50.0
 WIDE_DISTANCE_M, WIDE_FOV_DEG = 0.9, 36.0
 CLOSE_DISTANCE_M = 0.75
 CLOSE_HALF_SIZE_M = (0.085, 0.15)   # what each close-up panel must show around the centre: width, height
+CLOSE_PART_REACH = 1.5   # the close-up frames parts up to this multiple of the body's half extents, crops beyond
 # each side panel nearly head-on, from 25 deg above (+-x) or below (+-y), so the top and bottom show too
 CLOSE_DIRECTIONS = {"+x, above": (0.906, 0.0, 0.423), "+y, below": (0.0, 0.906, -0.423),
                     "-x, above": (-0.906, 0.0, 0.423), "-y, below": (0.0, -0.906, -0.423)}
@@ -160,6 +161,29 @@ def close_up_cameras(width, height, half_size_m=CLOSE_HALF_SIZE_M, distance_m=CL
         cams[label] = Camera(tuple(distance_m * d), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0),
                              float(np.degrees(2 * np.arctan(tan_x))), w, int(height))
     return cams
+
+
+def close_up_framing(config):
+    """Return (half_size_m (width, height), distance_m) of the close-up's panels for a configuration.
+
+    Framed on the body and the parts near it (an antenna, a baffle); a part reaching further than
+    ``CLOSE_PART_REACH`` x the body's half extents (a deployed wing) is cropped at that reach, so that
+    the body, and the diodes on it, fill the panel instead of shrinking to a few pixels beside the
+    wings; a diode on a part is kept in view. The camera stays outside every part: 3 x the farthest
+    reach from the centre.
+    """
+    body_half = np.asarray(config.body.size_m) / 2.0
+    pts = [body_half] + [np.minimum(np.abs(p.vertices_m), CLOSE_PART_REACH * body_half) for p in config.parts]
+    pts += [np.abs(d.position_body_m) + 0.01 for d in config.diodes if d.part is not None]   # diodes on parts too
+    ext = np.vstack(pts).max(axis=0)
+    # seen 25 deg from the horizontal, the satellite spans ext_z cos 25 + ext_xy sin 25 above and below the
+    # centre; it fills 72 % of the panel's height, leaving room for the legend, the panel titles and the caption
+    # (the 2U body, narrow panels framed by its width, fills 65 %)
+    sin_e = abs(next(iter(CLOSE_DIRECTIONS.values()))[2])
+    tall = (ext[2] * np.sqrt(1.0 - sin_e ** 2) + max(ext[0], ext[1]) * sin_e) / 0.72
+    half = (max(CLOSE_HALF_SIZE_M[0], 1.15 * float(max(ext[0], ext[1]))), max(CLOSE_HALF_SIZE_M[1], float(tall)))
+    reach = np.vstack([body_half] + [np.abs(p.vertices_m) for p in config.parts]).max()
+    return half, max(CLOSE_DISTANCE_M, 3.0 * float(reach))
 
 
 def _earth_rgb(passes, g, rmap):
@@ -360,7 +384,7 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
 
     ``config``: a :class:`SatelliteConfig` or a name; ``view_epoch_``: a :class:`ViewEpoch`;
     ``reflectivity_map``: a :class:`ReflectivityMap` (default TOMS 2005), shown on the Earth with a
-    colour bar; ``close_up`` draws the satellite alone from two sides.
+    colour bar; ``close_up`` draws the satellite alone from four sides (:func:`close_up_framing`).
     """
     from matplotlib import patheffects
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -374,11 +398,7 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
     g = view_epoch_.geometry
     width, height = int(resolution[0]), int(resolution[1])
     if close_up:
-        # framed on the whole satellite: the body and any extra parts (deployed panels, antennas)
-        pts = np.vstack([np.asarray(config.body.size_m) / 2.0] + [np.abs(p.vertices_m) for p in config.parts])
-        ext = np.abs(pts).max(axis=0)
-        half = (max(CLOSE_HALF_SIZE_M[0], 1.15 * max(ext[0], ext[1])), max(CLOSE_HALF_SIZE_M[1], 1.15 * ext[2]))
-        cams = close_up_cameras(width, height, half, max(CLOSE_DISTANCE_M, 3.0 * float(ext.max())))
+        cams = close_up_cameras(width, height, *close_up_framing(config))
     else:
         cams = {"": wide_camera(g, width, height)}
     panels = [_render_panel(config, g, cam, rmap, not close_up, spp, seed, label) for label, cam in cams.items()]
@@ -424,9 +444,10 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
         dx += p.camera.width
     dx = 0
     for p in panels:
+        # diode numbers above the arrows (zorder): an arrow from the centre passes over a face-centre diode
         for k, (x, y) in p.labelled:
             ov.text(x + dx, y, str(k), color="white", fontsize=fs, fontweight="bold", ha="center", va="center",
-                    path_effects=stroke)
+                    path_effects=stroke, zorder=4)
         length = 0.2 if not close_up else 0.17
         _arrow(ov, p.camera, sun_body, length, SUN_COLOUR, "Sun (eclipsed)" if eclipsed else "Sun", fs,
                dashed=eclipsed, dx=dx)

@@ -96,6 +96,7 @@ def _add_render_options(p):
                    help="target relative standard errors of direct and albedo irradiance (default 0.002 0.01)")
     p.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"),
                    help="fixed samples per diode-epoch instead of --accuracy (direct: a power of 4)")
+    _add_reflected_samples(p)
     p.add_argument("--dead", type=int, nargs="*", default=[], metavar="I", help="dead diode indices")
     p.add_argument("--extra-flat", action="store_true",
                    help="add the two optional flat diodes on top and bottom (14-diode layouts)")
@@ -121,6 +122,15 @@ def _add_render_options(p):
                    help="accept a reflectivity map with values above 1.2 (the shipped maps peak at 1.07)")
 
 
+def _add_reflected_samples(p):
+    """Add --reflected-samples: paths per diode-epoch for the reflected component."""
+    from simcore.pipeline.preflight import REFLECTED_SAMPLES
+    p.add_argument("--reflected-samples", type=int, default=REFLECTED_SAMPLES, metavar="N",
+                   help="paths per diode-epoch for the light the spacecraft's non-black surfaces reflect onto the "
+                        "diodes: 4 m^2 for a whole m >= 8 (256, 576, 1024, ...; default %(default)s); more paths, "
+                        "smaller standard errors of the reflected component")
+
+
 def _add_cloud_options(p, many=False):
     """Add --clouds (one seed, or with ``many`` a list: a sweep axis) and --cloud-scale-km."""
     from simcore.environment.clouds import DEFAULT_SCALE_KM
@@ -142,7 +152,7 @@ def run_options(args):
         step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude, dynamics=args.dynamics,
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
-        dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
+        reflected_samples=args.reflected_samples, dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
         clouds=args.clouds, cloud_scale_km=args.cloud_scale_km,
         sun_disc=not args.point_sun, chunk_epochs=args.chunk, output=args.output,
         **(dict(e_sun_w_m2=E_SUN_W_M2, distance_scaling=False) if args.solar_flux == "thesis" else {}),
@@ -485,7 +495,7 @@ def cmd_sweep(args):
                       rel_se_direct=None if samples else args.accuracy[0],
                       rel_se_albedo=None if samples else args.accuracy[1],
                       direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
-                      reflectivity=args.map, cloud_scale_km=args.cloud_scale_km, sun_disc=not args.point_sun,
+                      reflected_samples=args.reflected_samples, reflectivity=args.map, cloud_scale_km=args.cloud_scale_km, sun_disc=not args.point_sun,
                       chunk_epochs=args.chunk)
     clouds = args.clouds or [None]
     log = (lambda m: None) if args.json else print
@@ -715,6 +725,7 @@ def build_parser():
     w.add_argument("--satellite", metavar="NAME_OR_ID")
     w.add_argument("--accuracy", nargs=2, type=float, metavar=("DIRECT", "ALBEDO"), default=(0.002, 0.01))
     w.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"))
+    _add_reflected_samples(w)
     w.add_argument("--map", default="toms2005")
     _add_cloud_options(w, many=True)
     w.add_argument("--point-sun", action="store_true")
@@ -774,6 +785,11 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("sunsim: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (``sunsim validate RUN | head``): stop quietly, as other Unix tools do;
+        # stdout now points at /dev/null so that the interpreter's final flush does not fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

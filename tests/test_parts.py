@@ -126,3 +126,114 @@ def test_the_shipped_user_mesh_example_loads_from_its_stl_file():
     np.testing.assert_allclose(baffle.vertices_m.min(axis=0) * 1e3, [0.0, 0.0, 113.5], atol=1e-4)
     np.testing.assert_allclose(baffle.vertices_m.max(axis=0) * 1e3, [30.0, 30.0, 153.5], atol=1e-4)
     assert baffle.material == "anodised_aluminium" and baffle.source.endswith("camera_baffle.stl")
+
+
+# ------------------------------------------------------------------ diodes on a part (issue 13 item 2)
+WING_DIODES = """
+[[diode]]
+name = "wing top"
+part = "wing_+y"
+at_mm = [10.0, 1.0, 100.0]
+normal = [0.0, 1.0, 0.0]
+fov_deg = 90
+
+[[diode]]
+name = "wing under"
+part = "wing_+y"
+at_mm = [-10.0, -1.0, 50.0]
+normal = [0.0, -1.0, 0.0]
+fov_deg = 70
+"""
+
+
+def _wing_config(tmp_path, diodes=WING_DIODES):
+    path = tmp_path / "wings.toml"
+    path.write_text((EXAMPLES / "cubesat3u_panels.toml").read_text() + diodes)
+    return path
+
+
+def test_a_diode_on_a_wing_moves_with_the_wing_as_computed_by_hand(tmp_path):
+    cfg = SatelliteConfig.load(_wing_config(tmp_path, WING_DIODES + """
+[[diode]]
+name = "tilted"
+part = "wing_+y"
+at_mm = [30.0, 1.0, -100.0]
+normal = [0.0, 0.9396926207859084, 0.3420201433256687]
+fov_deg = 90
+"""))
+    top, under, tilted = cfg.diodes[6:]
+    # wing_+y: box 96 x 2 x 300 mm about its centre, moved by (0, 51.5, 20.25) mm, then turned +90 deg about
+    # x through (0, 50, 170.25) mm, which takes (x, y, z) to (x, 50 - (z - 170.25), 170.25 + (y - 50)): a
+    # point (x, y, z) of the box goes to (x, 200 - z, 171.75 + y) mm and a direction (a, b, c) to (a, -c, b).
+    # Its +y face (y = 1) looks up: the top diode's foot (10, 100, 172.75) mm, its sensitive surface on the
+    # 0.5 mm floor plate (scenes/FORMAT.md [mount] floor_mm) at z = 173.25 mm, normal +z.
+    np.testing.assert_allclose(top.position_body_m * 1e3, [10.0, 100.0, 173.25], atol=1e-9)
+    np.testing.assert_allclose(top.normal_body, [0.0, 0.0, 1.0], atol=1e-12)
+    # the -y face (y = -1) looks down: foot (-10, 150, 170.75) mm, the surface 0.5 mm below it
+    np.testing.assert_allclose(under.position_body_m * 1e3, [-10.0, 150.0, 170.25], atol=1e-9)
+    np.testing.assert_allclose(under.normal_body, [0.0, 0.0, -1.0], atol=1e-12)
+    # (0, cos 20, sin 20) -> (0, -sin 20, cos 20): tilted 20 deg toward the hinge (-y), its foot (30, 300, 172.75)
+    np.testing.assert_allclose(tilted.normal_body, [0.0, -0.3420201433256687, 0.9396926207859084], atol=1e-12)
+    assert tilted.part == "wing_+y" and tilted.panel is None
+    # no ramp: the floor's lowest corner stands on the wing's top face (z = 172.75 mm), above the foot's line
+    bottom, _ = tilted.mount_corners_m(cfg.mount)
+    assert bottom[:, 2].min() * 1e3 == pytest.approx(172.75, abs=1e-9)
+    np.testing.assert_allclose(tilted.position_body_m[:2] * 1e3, [30.0, 300.0], atol=1.5)
+    from scenes.meshes import build_parts
+    names = build_parts(cfg)
+    assert "floor_7" in names and "well_7" in names and "ramp_7" not in names and "ramp_0" in names
+
+
+@pytest.mark.parametrize("diode_toml, words", [
+    ('part = "wing_+z"\nat_mm = [0, 1, 0]\nnormal = [0, 1, 0]\n', "unknown part 'wing_+z'"),
+    ('part = "wing_+y"\nat_mm = [0, 2, 0]\nnormal = [0, 1, 0]\n', "lies 1.00 mm from the surface of part 'wing_+y'"),
+    ('part = "wing_+y"\nat_mm = [0, 1, 0]\nnormal = [0, -1, 0]\n', "points into part 'wing_+y'"),
+    ('part = "wing_+y"\npanel = "+x"\nat_mm = [0, 1, 0]\nnormal = [0, 1, 0]\n', "not both"),
+    ('part = "wing_+y"\nat_mm = [0, 1]\nnormal = [0, 1, 0]\n', "at_mm (on a part: [x, y, z] in mm"),
+])
+def test_bad_diodes_on_parts_are_one_line_errors_before_any_output(tmp_path, capsys, monkeypatch, diode_toml,
+                                                                    words):
+    path = _wing_config(tmp_path, "\n[[diode]]\nfov_deg = 90\n" + diode_toml)
+    out = tmp_path / "out"
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "--config", str(path), "--duration", "10", "-o", str(out / "r.nc")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert words in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_diodes_on_a_wing_pass_the_check_and_their_own_wing_leaves_them_checked(tmp_path):
+    path = tmp_path / "w.nc"
+    rc = main(["run", "--config", str(_wing_config(tmp_path)), "--start", "2016-07-02T00:45:00Z",
+               "--duration", "300", "-o", str(path)])
+    assert rc == 0                                          # the analytic check passes
+    ds = xr.open_dataset(path)
+    unchecked = ds["direct_unchecked"].values.astype(bool)
+    cos_sun = ds["sun_dir_body"].values @ ds["normal_body"].values.T
+    lit = ds["irradiance"].sel(component="direct").values > 0
+    for k in (6, 7):
+        # Oracle, the geometry: nothing of the spacecraft rises above the top diode's plane (z = 173.25 mm; the
+        # wings' tops are at 172.75) and nothing but the body's black box lies below the under diode's plane
+        # (z = 170.25 mm, the body's top face), so a part can shade them only where the solar disc (radius
+        # 0.27 deg) touches their own horizon, where their own wing cuts it.
+        assert np.all(np.abs(cos_sun[unchecked[:, k], k]) < np.sin(np.radians(0.3))), k
+        assert lit[:, k].sum() > 10 * unchecked[:, k].sum() + 10, k   # their direct light is checked
+
+
+def test_the_body_box_shades_a_diode_on_a_wing_as_computed_by_hand(tmp_path):
+    # The analytic model's body shadow on a diode off the body (scenes.config.body_side_normal picks the box
+    # face plane the diode lies beyond). The "wing under" diode: centre (-10, 150, 170.25) mm, normal -z, a
+    # FOV-70 well (opening 5.28 mm, height 0.48 mm; its walls vignette nothing below tan 2.7 off the normal).
+    # Oracles by hand, the body box |x|, |y| <= 50 mm, |z| <= 170.25 mm:
+    # d ~ (0, 1, -0.5): away from the body: clear (1); d ~ (0, -1, -0.5): meets the +y face at z = 120 mm,
+    # wholly shadowed (0); d ~ (-0.4, -1, -0.5): the shadow edge, the face's x = -50 mm side, is the line
+    # x + 0.4 (y - 50) = -50 mm on the diode's plane, through the diode's centre: half the square (0.5).
+    from simcore.radiometry.analytic import BodyBox
+    from simcore.shapes.occlusion import pair_visibility
+    cfg = SatelliteConfig.load(_wing_config(tmp_path))
+    k = 7
+    d = np.array([[0.0, 1.0, -0.5], [0.0, -1.0, -0.5], [-0.4, -1.0, -0.5]])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    box = BodyBox.from_config(cfg)
+    vis = pair_visibility(cfg.apertures, cfg.frames, box.positions_m, box.panel_normals, [k] * 3, d, box.half_m)
+    np.testing.assert_allclose(vis, [1.0, 0.0, 0.5], atol=1e-9)

@@ -316,6 +316,52 @@ def test_run_file_carries_reflected_unchecked(tmp_path):
     assert f"reflected: {int(np.count_nonzero(refl > 0))} diode-epochs" in v.stdout and "not checked" in v.stdout
 
 
+def test_reflected_samples_reach_the_renderer_the_run_file_and_a_resume(tmp_path, monkeypatch):
+    # Oracle: the number asked for. Every diode-epoch the path tracer visits traces exactly N paths (the run
+    # file's `samples`), the run file's attributes carry N, a run at the default (256) keeps the settings
+    # digest runs had before the option existed (no key in its options), and a partial run made with one N
+    # refuses to be resumed with another, then resumes with its own to the numbers of an uninterrupted run.
+    import json
+    import subprocess
+    import sys
+    import xarray as xr
+    from simcore.cli import build_parser, run_options
+    from simcore.pipeline.run import PreparedRun
+    from simcore.pipeline.store import ChunkStore
+
+    (tmp_path / "alu.toml").write_text('[layout]\npattern = "thesis14"\ntilt_deg = 20\nfov_deg = 70\n'
+                                       '[body]\nmaterial = "aluminium"\n[mount]\nmaterial = "aluminium"\n')
+    tiny = ["run", "--config", "alu.toml", "--start", "2016-07-02T00:45:00Z", "--duration", "3",
+            "--samples", "256", "256"]
+
+    def sunsim(args):
+        return subprocess.run([sys.executable, "-m", "simcore.cli", *args], capture_output=True, text=True,
+                              timeout=600, cwd=tmp_path)
+
+    for n, out in ((1024, "n1024.nc"), (256, "n256.nc")):
+        r = sunsim(tiny + ([] if n == 256 else ["--reflected-samples", str(n)]) + ["-o", out])
+        assert r.returncode == 0, r.stderr
+        ds = xr.load_dataset(tmp_path / out)
+        assert ds.attrs["reflected_samples"] == n
+        counts = ds["samples"].sel(component="reflected").values
+        assert set(np.unique(counts)) <= {0, n} and counts.max() == n
+        assert (json.loads(ds.attrs["options"]).get("reflected_samples") == n) == (n != 256)
+    # resume: one finished chunk of a run with 1024 paths, then the same output asked with the default
+    monkeypatch.chdir(tmp_path)           # the command's relative paths, as the resuming command gives them
+    opts = run_options(build_parser().parse_args(tiny + ["--reflected-samples", "1024", "--chunk", "1", "-o", "r.nc"]))
+    store = ChunkStore(opts.output, opts.spec()).open()
+    store.save(0, 1, PreparedRun(opts).render_chunk(0, 1))
+    store.close()
+    other = sunsim(tiny + ["-o", "r.nc"])
+    assert other.returncode == 2 and "different settings" in other.stderr, other.stderr
+    assert len(other.stderr.strip().splitlines()) == 1 and "Traceback" not in other.stderr
+    same = sunsim(tiny + ["--reflected-samples", "1024", "-o", "r.nc"])
+    assert same.returncode == 0 and "resuming: 1 of 3 epochs" in same.stderr, same.stderr
+    a, b = xr.load_dataset(tmp_path / "r.nc"), xr.load_dataset(tmp_path / "n1024.nc")
+    for name in ("irradiance", "irradiance_se", "samples"):
+        np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
 # ------------------------------------------------------------------------------------------ glossy
 # A rough conductor plate (GGX alpha 0.2, eta 1.2 + 7i) 2a x 2b at height H above a 1 mm diode facing +z,
 # the Sun from below lighting its underside. At a plate point x the radiance toward the diode (direction v,

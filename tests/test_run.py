@@ -193,12 +193,26 @@ def test_a_partial_run_of_an_older_chunk_layout_is_refused_before_any_work(tmp_p
     assert len(chunks) == 2
     first = os.path.join(out + ".partial", chunks[0])
     with np.load(first) as z:
-        arrays = {k: z[k] for k in z.files if k != "albedo_mesh"}
+        arrays = {k: z[k] for k in z.files if k != "analytic_albedo_native_mesh"}
     with open(first, "wb") as f:
         np.savez(f, **arrays)
     calls.clear()
     capsys.readouterr()
     assert cli.main(SMALL + ["-o", out]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "older sunsim" in err[0] and "albedo_mesh" in err[0], err
+    assert len(err) == 1 and "older sunsim" in err[0] and "analytic_albedo_native_mesh" in err[0], err
     assert calls == [] and len(os.listdir(out + ".partial")) >= 2 and not os.path.exists(out)
+
+
+def test_a_reader_that_stops_early_gets_no_traceback(tmp_path):
+    # `sunsim validate RUN | head -1`: the pipe closes while sunsim still writes; it must stop quietly.
+    # (Without the handler in simcore.cli.main this fails: BrokenPipeError traceback from print.)
+    out = str(tmp_path / "tiny.nc")
+    assert _sunsim(["run", "--start", "2016-07-02T00:45:00Z", "--duration", "4", "-o", out]).returncode == 0
+    for args in (["validate", out], ["estimate", out]):
+        proc = subprocess.Popen(SUNSIM + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        proc.stdout.close()                 # the reader goes away before sunsim writes (its start takes seconds)
+        err = proc.stderr.read()
+        proc.stderr.close()
+        proc.wait(timeout=600)
+        assert "Traceback" not in err and "BrokenPipeError" not in err, err

@@ -61,6 +61,9 @@ def _cuda_works():
     (["--samples", "-4", "-4"], ["--samples", "256", "256"], "--samples DIRECT must be 4 m^2"),
     (["--samples", "256", "255"], ["--samples", "256", "256"], "--samples ALBEDO must be an even number"),
     (["--samples", "16", "4"], ["--samples", "256", "256"], "below 256 the standard errors are not reliable"),
+    (["--reflected-samples", "0"], ["--reflected-samples", "256"], "--reflected-samples must be 4 m^2"),
+    (["--reflected-samples", "100"], ["--reflected-samples", "576"], "--reflected-samples must be 4 m^2"),
+    (["--reflected-samples", "64"], ["--reflected-samples", "1024"], "below 256 the standard errors are not reliable"),
     (["--seed", str(2 ** 64)], ["--seed", str(2 ** 64 - 1)], "--seed must be a whole number from 0 to 2^64-1"),
     (["--seed", "-1"], ["--seed", "1"], "--seed must be a whole number from 0 to 2^64-1"),
     (["--config", "tilt20_fov7"], ["--config", "tilt20_fov70"], "did you mean"),
@@ -152,6 +155,11 @@ def test_a_sweep_is_checked_before_any_worker_starts(tmp_path):
     base = ["sweep", "--starts", "2016-07-02T00:45:00Z", "--duration", "4", "--workers", "1", "--folder", "sw"]
     _case(tmp_path, base + ["--samples", "0", "0"], base + ["--samples", "256", "256"], "--samples DIRECT must be 4 m^2")
     assert (tmp_path / "sw" / "sweep.nc").exists()
+
+def test_a_sweeps_reflected_samples_are_checked_before_any_worker_starts(tmp_path):
+    base = ["sweep", "--starts", "2016-07-02T00:45:00Z", "--duration", "4", "--workers", "1", "--folder", "sw"]
+    _one_line_error(_sunsim(base + ["--reflected-samples", "-4"], tmp_path), "--reflected-samples must be 4 m^2")
+    assert _listing(tmp_path) == []
 
 
 # ---- item 6: honest inputs ----------------------------------------------------------------------------

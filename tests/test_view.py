@@ -139,6 +139,34 @@ def test_the_close_up_numbers_every_diode(config, n):
     assert sorted(set(seen)) == list(range(n))
 
 
+def test_the_3u_close_up_crops_the_wings_so_its_diodes_stay_legible():
+    # Oracles: the configuration's six face diodes (scenes/examples/cubesat3u_panels.toml), and a legibility
+    # floor of 2 pixels for the 2.65 mm side of the diode each panel looks at nearly head-on, in the default
+    # 960 x 540 picture (framed on the whole 0.7 m wing span, as before, it was 0.8 px); the wings reach 350 mm sideways, so the camera must stay
+    # farther than that, and the 340.5 mm body must fit in the panel's height.
+    from scenes.view import DEFAULT_VIEW_TIME, close_up_cameras, close_up_framing, _render_panel, view_epoch
+
+    cfg = SatelliteConfig.load(files("scenes") / "examples" / "cubesat3u_panels.toml")
+    half, distance = close_up_framing(cfg)
+    assert distance > 0.35
+    cams = close_up_cameras(960, 540, half, distance)
+    side_m = cfg.diodes[0].aperture.diode_x_m
+    ve = view_epoch(DEFAULT_VIEW_TIME)
+    seen = []
+    for label, cam in cams.items():
+        for d in cfg.diodes:
+            if d.normal_body @ np.asarray(cam.origin_m) / distance > 0.8:      # the side face the panel looks at
+                xy, _ = cam.project(d.position_body_m + np.outer([-0.5, 0.5], side_m * d.frame_body[0]))
+                assert np.linalg.norm(xy[1] - xy[0]) >= 2.0, (label, d.index)
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * np.asarray(
+            cfg.body.size_m) / 2
+        xy, _ = cam.project(corners)
+        assert 0 <= xy[:, 1].min() and xy[:, 1].max() <= cam.height, label
+        panel = _render_panel(cfg, ve.geometry, cam, None, False, 1, 0, label)
+        seen += [k for k, _ in panel.labelled]
+    assert sorted(set(seen)) == list(range(6))
+
+
 @pytest.mark.parametrize("extra", [[], ["--close-up"], ["--map", "uniform:0.3", "--config", "tilt0_fov90"]])
 def test_the_cli_writes_a_png_of_the_asked_size(tmp_path, extra):
     r = subprocess.run(SUNSIM + ["view", "--spp", "1", "--resolution", "120", "68", "-o", "v.png", "--json"] + extra,

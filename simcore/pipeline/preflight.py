@@ -30,6 +30,9 @@ SGP4_KM_PER_DAY = (1.0, 3.0)
 # spread and tails tests, and with 64 and 64 one 4-epoch run in 20 seeds fails its per-diode bias test
 # (5.1 sigma); with 256 and 256, 16 seeds of it all pass.
 MIN_SAMPLES = 256
+# Paths per diode-epoch for the reflected component unless --reflected-samples says otherwise: the renderer's
+# default, 2 points in each of 128 strata of the diode (4 m^2 with m = 8, the fewest MIN_SAMPLES allows).
+REFLECTED_SAMPLES = 256
 
 def _positive(value, option, what="a positive number"):
     if value is None or not (isinstance(value, (int, float, np.number)) and math.isfinite(value) and value > 0):
@@ -69,11 +72,22 @@ def check_numbers(opts):
                 or opts.albedo_samples % 2):
             raise InvalidInputError(f"--samples ALBEDO must be an even number >= {MIN_SAMPLES} (below that the "
                                     f"standard errors are not reliable), got {opts.albedo_samples}")
+    check_reflected_samples(getattr(opts, "reflected_samples", MIN_SAMPLES))
     if int(opts.seed) != opts.seed or not 0 <= int(opts.seed) <= MAX_SEED:
         raise InvalidInputError(f"--seed must be a whole number from 0 to 2^64-1 ({MAX_SEED}), got {opts.seed}")
     if int(opts.chunk_epochs) != opts.chunk_epochs or opts.chunk_epochs < 1:
         raise InvalidInputError(f"--chunk must be a positive number of epochs, got {opts.chunk_epochs}")
     check_clouds(opts)
+
+
+def check_reflected_samples(n):
+    """Raise InvalidInputError unless ``n`` paths per diode-epoch can carry the reflected component: 4 m^2 for a
+    whole m >= 8 (2 paths in each of 2 m^2 strata of the diode; at least MIN_SAMPLES, as direct and albedo)."""
+    m = math.isqrt(n // 4) if isinstance(n, (int, np.integer)) and n > 0 else 0
+    if m < 8 or 4 * m * m != n:
+        raise InvalidInputError(f"--reflected-samples must be 4 m^2 for a whole m >= 8 (256, 576, 1024, 4096, ...: "
+                                f"2 paths in each of 2 m^2 strata of the diode; below {MIN_SAMPLES} the standard "
+                                f"errors are not reliable), got {n}")
 
 
 def check_clouds(opts):

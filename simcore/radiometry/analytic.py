@@ -33,7 +33,7 @@ import functools
 
 import numpy as np
 
-from scenes.config import panel_axes
+from scenes.config import body_side_normal
 
 from simcore import _llvm
 from simcore.environment import eclipse as _eclipse
@@ -57,6 +57,8 @@ class AnalyticIrradiance:
     # through the directions it covers (before their shadow), and the estimated error of its quadrature
     albedo_mesh_w_m2: np.ndarray = None
     albedo_visibility_error_w_m2: np.ndarray = None
+    # ... and the albedo with the body box alone deciding everywhere (what the model gives without it)
+    albedo_box_w_m2: np.ndarray = None
 
     @property
     def total_w_m2(self):
@@ -259,16 +261,18 @@ def cell_runs(r_sat_m, sun_unit, refl):
 # ---- the albedo sums ---------------------------------------------------------------------
 def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None, visibility=None):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy; with ``visibility`` (a
-    :class:`DirectionVisibility`) also the same sum with its half-fine share, and the sum of the well's
-    response over its marked cells alone (else None, None)."""
+    :class:`DirectionVisibility`) also the same sum with its half-fine share, the sum of the well's
+    response over its marked cells alone and the sum with the body box alone deciding everywhere (else
+    None, None, None)."""
     n_ep, K = r_sat.shape[0], frames.shape[0]
     out = np.zeros((n_ep, K))
     alt = None if visibility is None else np.zeros((n_ep, K))
     band = None if visibility is None else np.zeros((n_ep, K))
+    box_only = None if visibility is None else np.zeros((n_ep, K))
     rows, first, count = cell_runs(r_sat, sun_unit, refl)
     cnt = count.reshape(-1)
     if cnt.sum() == 0:
-        return out, alt, band
+        return out, alt, band, box_only
     ep = np.repeat(np.repeat(np.arange(n_ep), rows.shape[1] * 2), cnt)
     row = np.repeat(rows.reshape(-1), cnt)
     offs = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
@@ -293,11 +297,12 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
             s_ = slots[k][(fi // sub) * nph + fj // sub].astype(np.int64)
             mark = s_ > 0
             band[:, k] = np.bincount(ep, weights=w * a0 * mark, minlength=n_ep)
+            box_only[:, k] = np.bincount(ep, weights=w * a, minlength=n_ep)
             a_alt = np.where(mark, a0 * half[s_, (fi % sub) // 2, (fj % sub) // 2], a)
             a = np.where(mark, a0 * fine[s_, fi % sub, fj % sub], a)
             alt[:, k] = np.bincount(ep, weights=w * a_alt, minlength=n_ep)
         out[:, k] = np.bincount(ep, weights=w * a, minlength=n_ep)
-    return out, alt, band
+    return out, alt, band, box_only
 
 
 class _DrJitOps:
@@ -312,7 +317,7 @@ class _DrJitOps:
 def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None,
                   visibility=None):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor from one Dr.Jit LLVM kernel, and the
-    two sums of :func:`_albedo_numpy` for ``visibility`` (else None, None)."""
+    three sums of :func:`_albedo_numpy` for ``visibility`` (else None, None, None)."""
     dr = _llvm.import_drjit()
     from drjit.llvm import Float, Float64, UInt32
 
@@ -355,7 +360,8 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             a = dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
         if comp is None:
             return (acc + wt * a,)
-        part, alt = more
+        part, alt, box = more
+        box = box + wt * a
         if marked[k]:
             # the marked cells lie beyond the diode's first marked row (angle from the normal): a packet of
             # lanes nearer the normal skips the angles and lookups (a branch in the kernel)
@@ -363,7 +369,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
                                       true_fn=_marked_share, false_fn=_unmarked_share)
         else:
             alt = alt + wt * a
-        return acc + wt * a, part, alt
+        return acc + wt * a, part, alt, box
 
     def _marked_share(k, a0, a, wt, du, dv, dn, part, alt):
         # the cells of _fine_index: theta from the normal, azimuth from u
@@ -403,14 +409,15 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         bx = M[0] * ex + M[1] * ey + M[2] * ez
         by = M[3] * ex + M[4] * ey + M[5] * ez
         bz = M[6] * ex + M[7] * ey + M[8] * ez
-        new, part, alt = [], [], []
+        new, part, alt, box = [], [], [], []
         for k in range(K):
             f = fr[k]
             du = f[0][0] * bx + f[0][1] * by + f[0][2] * bz
             dv = f[1][0] * bx + f[1][1] * by + f[1][2] * bz
             dn = f[2][0] * bx + f[2][1] * by + f[2][2] * bz
             a0 = kernels[k](du, dv, dn, ops)
-            state = (a0, wt, bx, by, bz, du, dv, dn, acc[k], *((acc[K + k], acc[2 * K + k]) if comp else ()))
+            state = (a0, wt, bx, by, bz, du, dv, dn, acc[k],
+                     *((acc[K + k], acc[2 * K + k], acc[3 * K + k]) if comp else ()))
             # the body's shadow and the visible shares only where the diode sees the cell: a packet of lanes
             # that all read 0 skips them (a branch in the kernel), ~20 % of this kernel's time
             out = dr.if_stmt(args=state, cond=a0 > 0, true_fn=functools.partial(_diode_term, k),
@@ -419,10 +426,11 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             if comp is not None:
                 part.append(out[1])
                 alt.append(out[2])
-        return (t + 1, *new, *part, *alt)
+                box.append(out[3])
+        return (t + 1, *new, *part, *alt, *box)
 
     comp = None if visibility is None else visibility.compact
-    n_acc = K if comp is None else 3 * K
+    n_acc = K if comp is None else 4 * K
     if comp is not None:
         nt, nph = visibility.mask.shape[1:]
         sub, h = comp[3], comp[3] // 2
@@ -440,8 +448,8 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     for k in range(n_acc):
         sums[:, k] = np.asarray(acc[k].numpy(), dtype=np.float64).reshape(2, n_ep, W).sum(axis=(0, 2))
     if comp is None:
-        return sums, None, None
-    return sums[:, :K], sums[:, 2 * K:], sums[:, K:2 * K]
+        return sums, None, None, None
+    return sums[:, :K], sums[:, 2 * K:3 * K], sums[:, K:2 * K], sums[:, 3 * K:]
 
 
 def _box_hit_dr(dr, origin, d, half):
@@ -470,7 +478,7 @@ class BodyBox:
     def from_config(cls, config):
         """Return the body box of a ``scenes.config.SatelliteConfig``."""
         return cls(tuple(float(x) / 2 for x in config.body.size_m), np.asarray(config.positions_m, float),
-                   np.array([panel_axes(d.panel)[0] for d in config.diodes], float))
+                   np.array([body_side_normal(d, config.body) for d in config.diodes], float))
 
 
 def solar_disc_offsets(radius_rad, rings=3):
@@ -744,7 +752,8 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     ``visibility``: a :class:`DirectionVisibility`: the albedo from the directions it marks is the
     well's response times the visible share it gives (the body box decides elsewhere);
     ``albedo_mesh_w_m2`` is then the albedo through those directions before their shadow, and
-    ``albedo_visibility_error_w_m2`` the difference its half-fine share makes (the quadrature's error).
+    ``albedo_visibility_error_w_m2`` the difference its half-fine share makes (the quadrature's error),
+    and ``albedo_box_w_m2`` the albedo without it (the body box deciding everywhere), from the same pass.
     """
     r_sat = _rows("r_sat_ecef_m", r_sat_ecef_m)
     r_sun = _rows("r_sun_ecef_m", r_sun_ecef_m)
@@ -799,6 +808,7 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
         raise ValueError(f"visibility is for {visibility.mask.shape[0]} diodes, not {frames.shape[0]}")
     alb_alt = None if visibility is None else np.zeros_like(alb)
     alb_band = None if visibility is None else np.zeros_like(alb)
+    alb_box = None if visibility is None else np.zeros_like(alb)
     if albedo:
         sun_unit = r_sun / np.linalg.norm(r_sun, axis=1)[:, None]
         batch = max(1, int(batch_epochs))
@@ -808,14 +818,15 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
             sl = slice(s, min(n_ep, s + batch))
             fn = _albedo_drjit if backend == "drjit" else _albedo_numpy
             extra = (precision,) if backend == "drjit" else ()
-            alb[sl], alt, band = fn(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl, *extra,
-                                    body, visibility)
+            alb[sl], alt, band, box_only = fn(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl,
+                                              *extra, body, visibility)
             if visibility is not None:
-                alb_alt[sl], alb_band[sl] = alt, band
+                alb_alt[sl], alb_band[sl], alb_box[sl] = alt, band, box_only
         alb *= (e_sun / np.pi)[:, None]
         if visibility is not None:
             alb_alt *= (e_sun / np.pi)[:, None]
             alb_band *= (e_sun / np.pi)[:, None]
+            alb_box *= (e_sun / np.pi)[:, None]
     err = None if visibility is None else np.abs(alb - alb_alt)
     return AnalyticIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit,
-                              albedo_mesh_w_m2=alb_band, albedo_visibility_error_w_m2=err)
+                              albedo_mesh_w_m2=alb_band, albedo_visibility_error_w_m2=err, albedo_box_w_m2=alb_box)
