@@ -300,6 +300,21 @@ def test_overlapping_windows_are_a_one_line_error(tmp_path, capsys):
     assert len(err.splitlines()) == 1
 
 
+def test_a_diode_on_a_part_takes_a_window_and_reads_the_slab(tmp_path):
+    # issue 13's diodes on parts: a bare diode on the deployed +y wing of the 3U example (its surface looks up,
+    # +z; tests/test_parts.py computes the placement by hand), under the example's window: its traced response
+    # at normal incidence is the slab's (1 - R) / (1 + R), R = 0.04 for n = 1.5 (issue 14's T at 0 deg)
+    ex = Path(__file__).resolve().parents[1] / "scenes" / "examples" / "cubesat3u_panels.toml"
+    path = tmp_path / "w.toml"
+    path.write_text(ex.read_text() + '[[diode]]\nname = "wing top"\npart = "wing_+y"\nat_mm = [10.0, 1.0, 100.0]\n'
+                    'normal = [0.0, 1.0, 0.0]\nfov_deg = 90\n'
+                    'window = {index = 1.5, thickness_mm = 1.0, gap_mm = 0.5, size_mm = [20, 20]}\n')
+    cfg = SatelliteConfig.load(path)
+    assert cfg.diodes[6].part == "wing_+y" and cfg.windows[6] == Window(1.5, 1e-3, 0.5e-3, (20e-3, 20e-3))
+    (r,) = traced_response(cfg, diodes=[6], step_deg=45.0, samples=256)
+    assert r.response[0] == pytest.approx(0.96 / 1.04, rel=FLOAT_REL)
+
+
 def test_layout_window_covers_every_diode_of_the_layout(tmp_path):
     path = tmp_path / "l.toml"
     path.write_text('[layout]\npattern = "thesis14"\ntilt_deg = 20\nfov_deg = 70\n'
