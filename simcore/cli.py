@@ -247,13 +247,15 @@ def cmd_response(args):
             plot_angular_response(r.theta_deg, {"traced": r.response, "cos": r.cosine, "eq. 4.15": r.eq415,
                                                 ("well overlap" if cfg.diodes[r.index].window is None
                                                  else "well + window, closed form"): r.well,
-                                                f"Kelly {r.kelly_factor:.3g}": r.kelly},
+                                                f"Kelly {r.kelly_factor:.3g}, scale {r.kelly_scale:.3g}": r.kelly},
                                   errors={"traced": r.response_se}, fov_deg=None, cutoff_deg=None,
-                                  title=f"diode {r.index} ({r.name}), Sun in its {r.plane}-n plane", path=one)
+                                  title=f"diode {r.index} ({r.name}), Sun in its {r.plane}-n plane", path=one,
+                                  ylabel="irradiance / E_sun (a bare diode facing the Sun: 1) [-]")
             if r.map_response is not None:
                 plot_response_hemisphere(r.map_theta_deg, r.map_phi_deg, r.map_response,
                                          title=f"diode {r.index} ({r.name}): traced response",
-                                         path=one.with_name(f"{one.stem}_map{one.suffix}"))
+                                         path=one.with_name(f"{one.stem}_map{one.suffix}"),
+                                         label="irradiance / E_sun [-]")
     if args.json:
         print(json.dumps({"config": args.config, "diodes": [r.as_dict() for r in resp]}))
     else:

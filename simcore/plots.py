@@ -487,7 +487,7 @@ def plot_albedo_cells(cells, *, lat_deg=None, lon_deg=None, sat_lat_lon_deg=None
 # ----------------------------------------------------------------------------- angular response
 
 def plot_angular_response(theta_deg, curves, *, fov_deg=None, cutoff_deg=83.1, errors=None, title=None,
-                          path=None):
+                          path=None, ylabel="Response relative to normal incidence [-]"):
     """Return a Figure of aperture angular response cuts: response relative to normal incidence vs angle (deg).
 
     ``theta_deg`` (M,) incidence angles; ``curves`` dict name -> (M,) responses relative to
@@ -536,7 +536,7 @@ def plot_angular_response(theta_deg, curves, *, fov_deg=None, cutoff_deg=83.1, e
     ymax = max(1.05, float(np.nanmax([np.nanmax(np.asarray(v, float)) for v in curves.values()])) * 1.05)
     ax.set_ylim(0.0, ymax)
     ax.set_xlabel("Incidence angle $\\theta$ from the diode normal [deg]")
-    ax.set_ylabel("Response relative to normal incidence [-]")
+    ax.set_ylabel(ylabel)
     ax.grid(True, lw=0.4, alpha=0.5)
     fig.legend(loc="outside lower center", ncol=min(len(curves), 5), fontsize=9, frameon=False)
     if title is not None:
@@ -697,7 +697,8 @@ def plot_response_map(rmap, path=None):
     return fig
 
 
-def plot_response_hemisphere(theta_deg, phi_deg, response, *, title=None, path=None):
+def plot_response_hemisphere(theta_deg, phi_deg, response, *, title=None, path=None,
+                             label="response relative to normal incidence [-]"):
     """Return a Figure of a response over a diode's hemisphere: polar map, radius = angle from the normal
     (``theta_deg``, (T,) cell centres), angle = azimuth from the diode's u axis (``phi_deg``, (P,));
     ``response`` (T, P) relative to normal incidence."""
@@ -714,7 +715,7 @@ def plot_response_hemisphere(theta_deg, phi_deg, response, *, title=None, path=N
     ax.set_ylim(0, 90)
     ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=8)
     ax.set_xlabel("azimuth from the diode's u axis; radius: angle from its normal", fontsize=9)
-    fig.colorbar(pc, ax=ax, shrink=0.8, label="response relative to normal incidence [-]")
+    fig.colorbar(pc, ax=ax, shrink=0.8, label=label)
     if title is not None:
         ax.set_title(title, fontsize=10)
     return _finish(fig, path)

@@ -49,12 +49,14 @@ def test_ramp_diode_traced_through_the_body_shadow_matches_the_box_model():
     assert np.all(np.abs(r.response - ref) <= 4 * r.response_se + 1e-6), np.c_[r.theta_deg, r.response, ref]
 
 
-@pytest.mark.parametrize("kappa", [0.02, 0.1])
-def test_kelly_fit_recovers_a_known_factor(kappa):
+@pytest.mark.parametrize("kappa, scale", [(0.02, 1.0), (0.1, 1.0), (0.1, 0.923)])
+def test_kelly_fit_recovers_a_known_factor_and_scale(kappa, scale):
+    # Basilisk's model scaleFactor x cos x (1 - exp(-cos^2 / kappa)) inside the FOV, built with known values
+    # (0.923: a bare diode under a glass of index 1.5 at normal incidence, 1 - 2 R with R = 0.04, roughly)
     theta = np.arange(0.0, 90.1, 2.5)
-    resp = basilisk_response(np.cos(np.radians(theta)), np.radians(80.0) - 1e-9, kappa)
-    k, fov, rms = fit_kelly(theta, resp)
-    assert k == pytest.approx(kappa, rel=1e-3) and fov == 80.0 and rms < 1e-6
+    resp = scale * basilisk_response(np.cos(np.radians(theta)), np.radians(80.0) - 1e-9, kappa)
+    k, fov, rms, s = fit_kelly(theta, resp)
+    assert k == pytest.approx(kappa, rel=1e-3) and s == pytest.approx(scale, rel=1e-6) and fov == 80.0 and rms < 1e-6
     # and a wrong curve is not fitted exactly: the cosine itself has no Kelly factor
     assert fit_kelly(theta, np.cos(np.radians(theta)))[0] == 0.0
 

@@ -51,6 +51,7 @@ class DiodeResponse:
     kelly_fov_deg: float
     kelly: np.ndarray
     kelly_rms: float
+    kelly_scale: float = 1.0
     map_theta_deg: np.ndarray = None
     map_phi_deg: np.ndarray = None
     map_response: np.ndarray = None
@@ -61,7 +62,8 @@ class DiodeResponse:
         for key in ("theta_deg", "response", "response_se", "direct", "reflected", "cosine", "eq415", "well",
                     "kelly"):
             out[key] = [float(x) for x in getattr(self, key)]
-        out.update(kelly_factor=self.kelly_factor, kelly_fov_deg=self.kelly_fov_deg, kelly_rms=self.kelly_rms)
+        out.update(kelly_factor=self.kelly_factor, kelly_scale=self.kelly_scale, kelly_fov_deg=self.kelly_fov_deg,
+                   kelly_rms=self.kelly_rms)
         if self.map_response is not None:
             out["map"] = {"theta_deg": [float(x) for x in self.map_theta_deg],
                           "phi_deg": [float(x) for x in self.map_phi_deg],
@@ -79,9 +81,10 @@ def _plane_directions(theta_deg, plane):
 
 
 def fit_kelly(theta_deg, response, k_power=2.0):
-    """Return (kappa, fov_deg, rms): Basilisk's Kelly factor fitted by least squares to a response curve
-    (unitless, over ``theta_deg``), its FOV the first angle where the response reaches 0 (90 deg if it
-    never does), and the rms residual. kappa = 0 means the pure cosine fits best."""
+    """Return (kappa, fov_deg, rms, scale): Basilisk's Kelly factor and its scale factor (the response at normal
+    incidence, Basilisk's ``scaleFactor`` in units of E_sun: below 1 under a cover glass) fitted by least squares
+    to a response curve (unitless, over ``theta_deg``), its FOV the first angle where the response reaches 0
+    (90 deg if it never does), and the rms residual. kappa = 0 means the scaled cosine fits best."""
     theta_deg, response = np.asarray(theta_deg, float), np.asarray(response, float)
     dark = np.flatnonzero((response <= 0) & (theta_deg > 0))
     fov = float(theta_deg[dark[0]]) if dark.size else 90.0
@@ -89,16 +92,20 @@ def fit_kelly(theta_deg, response, k_power=2.0):
     fov_cut = np.radians(fov) - 1e-9
     c = np.cos(np.radians(theta_deg))
 
-    def cost(log_k):
-        return float(np.mean((basilisk_response(c, fov_cut, np.exp(log_k), k_power) - response) ** 2))
+    def fit(kappa):
+        """Return (mean square residual, scale) with the scale that is best for this kappa (linear in it)."""
+        b = basilisk_response(c, fov_cut, kappa, k_power)
+        bb = float(np.dot(b, b))
+        scale = float(np.dot(b, response) / bb) if bb > 0 else 1.0
+        return float(np.mean((scale * b - response) ** 2)), scale
 
-    res = minimize_scalar(cost, bounds=(np.log(1e-6), np.log(10.0)), method="bounded",
-                          options={"xatol": 1e-6})
+    res = minimize_scalar(lambda log_k: fit(np.exp(log_k))[0], bounds=(np.log(1e-6), np.log(10.0)),
+                          method="bounded", options={"xatol": 1e-6})
     k = float(np.exp(res.x))
-    pure = float(np.mean((basilisk_response(c, fov_cut, 0.0, k_power) - response) ** 2))
-    if pure <= res.fun:
-        return 0.0, fov, float(np.sqrt(pure))
-    return k, fov, float(np.sqrt(res.fun))
+    (best, scale), (pure, pure_scale) = fit(k), fit(0.0)
+    if pure <= best:
+        return 0.0, fov, float(np.sqrt(pure)), pure_scale
+    return k, fov, float(np.sqrt(best)), scale
 
 
 def check_request(cfg, diodes, plane, step_deg, samples, map_step_deg):
@@ -146,14 +153,15 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
         total = direct + reflected
         ap = ds.apertures[j]
         fov = float(cfg.fov_deg[k])
-        kappa, kfov, rms = fit_kelly(theta, total)
+        kappa, kfov, rms, kscale = fit_kelly(theta, total)
         r = DiodeResponse(
             index=k, name=cfg.diodes[k].name, plane=plane, theta_deg=theta, response=total, response_se=se,
             direct=direct, reflected=reflected, cosine=np.cos(np.radians(theta)),
             eq415=(Eq415Response(fov).response(d_local) if np.cos(np.radians(fov)) > EQ415_CUTOFF_COS
                    else np.clip(d_local[:, 2], 0.0, None)),      # eq. 4.15 needs a FOV below its cut-off
             well=_closed_form(ap, cfg.diodes[k].window).response(d_local), kelly_factor=kappa, kelly_fov_deg=kfov,
-            kelly=basilisk_response(np.cos(np.radians(theta)), np.radians(kfov) - 1e-9, kappa), kelly_rms=rms)
+            kelly=kscale * basilisk_response(np.cos(np.radians(theta)), np.radians(kfov) - 1e-9, kappa), kelly_rms=rms,
+            kelly_scale=kscale)
         if map_step_deg is not None:
             mt = np.arange(0.5 * map_step_deg, 90.0, map_step_deg)
             mp = np.arange(-180.0 + 0.5 * map_step_deg, 180.0, map_step_deg)
@@ -177,8 +185,8 @@ def format_table(responses):
     """Return the text table of :func:`traced_response`'s results."""
     lines = []
     for r in responses:
-        lines.append(f"diode {r.index} ({r.name}), Sun swept in its {r.plane}-n plane; Kelly factor {r.kelly_factor:.4g} "
-                     f"inside {r.kelly_fov_deg:g} deg (rms {r.kelly_rms:.2g})")
+        lines.append(f"diode {r.index} ({r.name}), Sun swept in its {r.plane}-n plane; Kelly factor {r.kelly_factor:.4g}, "
+                     f"scale {r.kelly_scale:.4g}, inside {r.kelly_fov_deg:g} deg (rms {r.kelly_rms:.2g})")
         lines.append("  theta   response  +-se        cosine   eq.4.15  well     Kelly")
         for i, th in enumerate(r.theta_deg):
             lines.append(f"  {th:5.1f}   {r.response[i]:.5f}  {r.response_se[i]:.1e}   {r.cosine[i]:.5f}  "
