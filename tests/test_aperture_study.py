@@ -73,8 +73,9 @@ def _mirror_fraction(a, w, s, r, kmax=8):
 def test_mirror_walls_match_method_of_images():
     # Oracle: the kaleidoscope (method of images) closed form above. Directions along a wall axis whose light
     # reaches the diode after at most one reflection: the path tracer samples the Sun's image in one mirror
-    # plane explicitly; chains of two or more specular reflections of the 0.27 deg Sun it finds only by chance
-    # (a known limit of the renderer, see the notebook), so they are not tested here.
+    # plane explicitly. Chains of two or more specular reflections of the 0.27 deg Sun it meets only when a
+    # first direction happens to hit the Sun's image (it reads 0 instead of 0.035 at 88 deg on the axis, and
+    # misses the double reflection in the corner on the diagonal): a limit of the renderer, not tested here.
     d = _grid([20.0, 60.0, 72.0, 78.0, 82.0, 85.0], [0.0])
     w = A.wall_response(AP70, d, "mirror", floor_material="black", samples=16384, seed=2)
     a, half, h = AP70.diode_x_m / 2, AP70.opening_x_m / 2, AP70.height_m
