@@ -15,6 +15,11 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
   from the diode surface up to ``aperture.height_m``; its inner cross-section is
   the aperture's opening and its walls run along the diode frame's u and v axes
   (:func:`simcore.shapes.aperture.diode_frame`). Absent for a bare diode (height 0).
+- ``plug_k``: the diode's own absorbing body, a black block filling the floor's hole from
+  ``PLUG_DEPTH_M`` under the diode surface down to the floor's underside. The renderer starts its paths
+  on the diode surface, which is not in the mesh; light coming back onto the diode (reflected by walls,
+  parts or the body) ends on the plug instead of falling through the hole onto the ramp and the hole's
+  sides. Material 'black' whatever the mount's.
 - ``part_NAME``: each extra part of the configuration (``[[part]]``: a mesh file or a box, placed and
   hinged, :class:`scenes.config.Part`), as given (not necessarily closed).
 - ``diode_k`` (only in :func:`build_parts` with ``include_diodes=True`` and in
@@ -23,7 +28,7 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
 Every part is a closed, consistently outward-oriented mesh (the diode squares
 excepted); parts touch but do not overlap. Each part's ``metadata['material']`` is its
 surface material (:mod:`scenes.materials`: ``[body] material`` for the body,
-``[mount] material`` for ramps, floors and wells; diode squares 'black').
+``[mount] material`` for ramps, floors and wells; plugs and diode squares 'black').
 """
 from __future__ import annotations
 
@@ -33,6 +38,10 @@ import numpy as np
 import trimesh
 
 from scenes.config import SatelliteConfig, panel_axes
+
+# The plug's top under the diode surface: below the path tracer's 2 um spawn offset (paths leaving the diode
+# start above it), far above float32 resolution at the satellite's scale (~1e-8 m at 0.1 m).
+PLUG_DEPTH_M = 1e-6
 
 _SQUARE = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)  # counter-clockwise in (u, v)
 
@@ -72,7 +81,8 @@ def body_mesh(config):
 
 
 def mount_meshes(config, k):
-    """Return {'ramp', 'floor', 'well'} meshes of diode k's mount (body frame, m); 'well' absent when bare."""
+    """Return {'ramp', 'floor', 'well', 'plug'} meshes of diode k's mount (body frame, m); 'well' absent when
+    bare. The plug's ``metadata['material']`` is 'black' (the others take the mount's material)."""
     d, m, body = config.diodes[k], config.mount, config.body
     ap, frame, centre = d.aperture, d.frame_body, d.position_body_m
     outer = np.array([ap.opening_x_m, ap.opening_y_m]) / 2.0 + m.wall_m
@@ -88,6 +98,11 @@ def mount_meshes(config, k):
     if ap.height_m > 0:
         parts["well"] = _ring_mesh(outer, [ap.opening_x_m / 2.0, ap.opening_y_m / 2.0], 0.0, ap.height_m,
                                    frame, centre)
+    half_diode = np.array([ap.diode_x_m, ap.diode_y_m]) / 2.0
+    plug_local = np.column_stack([np.vstack([_SQUARE * half_diode] * 2),
+                                  np.repeat([-m.floor_m, -PLUG_DEPTH_M], 4)])
+    parts["plug"] = trimesh.convex.convex_hull(_to_body(plug_local, frame, centre))
+    parts["plug"].metadata["material"] = "black"
     return parts
 
 
@@ -106,14 +121,15 @@ def diode_surfaces(config):
 
 
 def build_parts(config, include_diodes=False):
-    """Return the named parts {'body', 'ramp_k', 'floor_k', 'well_k', 'part_NAME'[, 'diode_k']} (body frame, m)."""
+    """Return the named parts {'body', 'ramp_k', 'floor_k', 'well_k', 'plug_k', 'part_NAME'[, 'diode_k']} (body
+    frame, m)."""
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
     parts = {"body": body_mesh(config)}
     parts["body"].metadata["material"] = config.body.material
     for k in range(config.n_diodes):
         for name, mesh in mount_meshes(config, k).items():
-            mesh.metadata["material"] = config.mount.material
+            mesh.metadata.setdefault("material", config.mount.material)
             parts[f"{name}_{k}"] = mesh
     for part in config.parts:
         mesh = trimesh.Trimesh(part.vertices_m, part.faces, process=False)
@@ -129,7 +145,7 @@ def build_parts(config, include_diodes=False):
 
 
 def build_satellite_mesh(config):
-    """Return the satellite's occluder (body, ramps, floors, wells) as one mesh, body frame, metres.
+    """Return the satellite's occluder (body, ramps, floors, wells, plugs, parts) as one mesh, body frame, metres.
 
     ``mesh.metadata['parts']`` maps each part name to its (first, stop) face range and
     ``mesh.metadata['materials']`` to its material (the renderer path-traces the parts that are

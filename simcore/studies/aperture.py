@@ -44,7 +44,7 @@ import trimesh
 
 from scenes.config import LAYOUT_DEFAULTS, ConfigError, SatelliteConfig, expand_layout, list_configs
 from scenes.materials import check_material
-from scenes.meshes import build_satellite_mesh, diode_surfaces, mount_meshes
+from scenes.meshes import build_satellite_mesh, mount_meshes
 from simcore.constants import BPW34_AREA_M2
 from simcore.environment.eclipse import sunlit
 from simcore.environment.geometry import one_orbit_geometry
@@ -124,7 +124,6 @@ MATTE_BLACK = {"type": "diffuse", "reflectance": 0.04}
 BARE_AL = {"type": "roughconductor", "material": "Al", "alpha": 0.2, "distribution": "ggx"}
 WALL_MATERIALS = {"matte black 0.04": MATTE_BLACK, "bare Al alpha 0.2": BARE_AL}
 _WALL_MAX_DEPTH = 64      # path vertices: the shallow well returns few paths after a handful (Russian roulette)
-_PLUG_DEPTH_M = 1e-6      # below the diode surface: under the path tracer's 2 um spawn offset, far above float32
 
 
 def material_label(spec):
@@ -187,20 +186,15 @@ def well_renderer(aperture, material, floor_material=None, *, variant=None, max_
     cfg = well_config(aperture, material)
     floor = material if floor_material is None else check_material(floor_material, "floor material")
     parts = mount_meshes(cfg, 0)
-    # The diode absorbs what comes back onto it. The renderer starts its paths on the diode surface, which is
-    # not in its mesh, so a reflected path heading back down would pass through the floor plate's hole and
-    # reflect on the hole's sides; a black plug just under the surface ends it there.
-    plug = diode_surfaces(cfg)
-    plug.apply_translation(-_PLUG_DEPTH_M * cfg.diodes[0].frame_body[2])
-    parts["diode"] = plug
-    names = [k for k in ("floor", "well", "diode") if k in parts]
+    # the plug (scenes.meshes): the diode absorbs what comes back onto it
+    names = [k for k in ("floor", "well", "plug") if k in parts]
     mesh = trimesh.util.concatenate([parts[k] for k in names])
     ranges, start = {}, 0
     for k in names:
         ranges[k] = (start, start + len(parts[k].faces))
         start = ranges[k][1]
     mesh.metadata["parts"] = ranges
-    mesh.metadata["materials"] = {"floor": floor, "well": cfg.mount.material, "diode": "black"}
+    mesh.metadata["materials"] = {"floor": floor, "well": cfg.mount.material, "plug": parts["plug"].metadata["material"]}
     return Renderer(DiodeSurfaces.from_config(cfg), mesh, e_sun_w_m2=1.0, variant=variant, max_depth=max_depth)
 
 
