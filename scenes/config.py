@@ -43,7 +43,8 @@ MOUNT_DEFAULTS = {"wall_mm": 0.5, "floor_mm": 0.5, "base_mm": 0.5, "material": "
 LAYOUT_DEFAULTS = {"pattern": None, "tilt_deg": None, "fov_deg": None, "extra_flat_diodes": False,
                    "triangle_mm": [22.0, 40.0], "extra_offset_mm": 25.0}
 DIODE_KEYS = ("name", "panel", "normal", "az_deg", "el_deg", "at_mm", "fov_deg", "well")
-WELL_KEYS = ("height_mm", "opening_mm")
+WELL_KEYS = ("height_mm", "opening_mm", "chamfer_mm", "chamfer_deg")
+WELL_REQUIRED = ("height_mm", "opening_mm")
 TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part")
 PART_KEYS = ("name", "file", "unit", "box_mm", "translate_mm", "rotate_deg", "hinge", "material")
 HINGE_KEYS = ("axis", "point_mm", "angle_deg")
@@ -359,20 +360,22 @@ def _aperture_for(fov_deg, well, where):
         if not isinstance(well, dict):
             raise ConfigError(f"{where}: 'well' must be a table {{height_mm = ..., opening_mm = [x, y]}}")
         _check_keys(well, WELL_KEYS, f"{where} well")
-        missing = [k for k in WELL_KEYS if k not in well]
+        missing = [k for k in WELL_REQUIRED if k not in well]
         if missing:
             raise ConfigError(f"{where}: the well needs {', '.join(missing)} (mm)")
         side = float(np.sqrt(BPW34_AREA_M2))
         try:
             ox, oy = (float(x) * MM for x in well["opening_mm"])
-            aperture = WellAperture(side, side, ox, oy, float(well["height_mm"]) * MM)
+            aperture = WellAperture(side, side, ox, oy, float(well["height_mm"]) * MM,
+                                    float(well.get("chamfer_mm", 0.0)) * MM, float(well.get("chamfer_deg", 0.0)))
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"{where}: invalid well {well!r}: {exc}") from None
         if aperture.height_m == 0:
             full_deg = 90.0
         else:
-            half_gap = (min(aperture.opening_x_m, aperture.opening_y_m) - side) / 2.0
-            full_deg = float(np.degrees(np.arctan2(half_gap, aperture.height_m)))
+            _, _, wx, wy, h_low, tx, ty, h_top = aperture.rims       # fully lit while inside both rims
+            full_deg = float(np.degrees(min(np.arctan2(min(wx, wy) - side / 2.0, h_low),
+                                            np.arctan2(min(tx, ty) - side / 2.0, h_top))))
         return aperture, (full_deg if fov_deg is None else float(fov_deg))
     if fov_deg is None:
         raise ConfigError(f"{where}: give fov_deg (or an explicit well)")
@@ -465,6 +468,11 @@ def _build_diode(index, table, body, mount):
     if at.shape != (2,) or not np.all(np.isfinite(at)):
         raise ConfigError(f"{where}: at_mm must be [lateral, along] in mm on the panel, got {table.get('at_mm')!r}")
     aperture, fov = _aperture_for(table.get("fov_deg"), table.get("well"), where)
+    widen_m = aperture.rims[5] - aperture.rims[2]
+    if widen_m >= mount.wall_m:
+        raise ConfigError(f"{where}: the well's chamfer widens the opening by {widen_m / MM:.3f} mm on each side, "
+                          f"through the {mount.wall_m / MM:g} mm wall; make chamfer_mm x tan(chamfer_deg) smaller "
+                          "than [mount] wall_mm")
     frame = diode_frame(n)
     at_m = at * MM
     centre = _place(frame, panel, at_m, aperture, body, mount)

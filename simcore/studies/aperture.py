@@ -90,6 +90,8 @@ def well_config(aperture, material="black"):
                          f"({side / MM:.3f} mm); got {aperture.diode_x_m / MM:.3f} x {aperture.diode_y_m / MM:.3f} mm. "
                          "Give a WellAperture over the BPW34 (WellAperture.design or the configuration's apertures)")
     well = {"height_mm": aperture.height_m / MM, "opening_mm": [aperture.opening_x_m / MM, aperture.opening_y_m / MM]}
+    if aperture.chamfer_m > 0:
+        well.update(chamfer_mm=aperture.chamfer_m / MM, chamfer_deg=aperture.chamfer_deg)
     return SatelliteConfig.from_dict({"name": "single_well", "mount": {"material": material}, "diode": [
         {"name": "well", "panel": "+z", "normal": [0.0, 0.0, 1.0], "at_mm": [0.0, 0.0], "well": well}]})
 
