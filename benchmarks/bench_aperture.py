@@ -1,7 +1,8 @@
-"""Benchmark of the aperture studies: wall-reflection paths per second, the whole-sphere black-well map,
-the self-shadowing of one configuration and the default sweep. Last line: one JSON object.
+"""Benchmark of the aperture studies: wall-reflection paths per second (the renderer's path tracer in one
+well, bare aluminium), the whole-sphere black-well map, the self-shadowing of one configuration and the
+default sweep. Last line: one JSON object.
 
-    .venv/bin/python benchmarks/bench_aperture.py [--rays 200000] [--variant llvm_ad_mono]
+    .venv/bin/python benchmarks/bench_aperture.py [--samples 65536] [--variant llvm_ad_mono]
 """
 import argparse
 import json
@@ -12,25 +13,25 @@ import numpy as np
 
 from simcore.studies import aperture as A
 from simcore.shapes.aperture import WellAperture
-from simcore.render.walls import WallMaterial, trace_well
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("--rays", type=int, default=200_000, help="paths per direction for the wall tracer")
-    p.add_argument("--variant", default=None, help="Mitsuba variant for the wall tracer (default: GPU if any)")
+    p.add_argument("--samples", type=int, default=65536, help="reflected paths per direction (4 m^2)")
+    p.add_argument("--variant", default=None, help="Mitsuba variant (default: GPU if any)")
     args = p.parse_args()
     from simcore.render.irradiance import choose_variant
     args.variant = choose_variant(args.variant)
     ap = WellAperture.design(75.0)
     d = A.cut_directions(np.arange(0.0, 90.0, 5.0), 0.0)
-    trace_well(ap, d[:2], WallMaterial.aluminium(), rays=1000, variant=args.variant)        # warm-up (JIT)
+    rend = A.well_renderer(ap, A.BARE_AL, variant=args.variant)
+    A.wall_response(ap, d[:2], A.BARE_AL, samples=1024, renderer=rend)        # warm-up (JIT)
     t0 = time.perf_counter()
-    tr = trace_well(ap, d, WallMaterial.aluminium(), rays=args.rays, variant=args.variant)
+    w = A.wall_response(ap, d, A.BARE_AL, samples=args.samples, renderer=rend)
     dt_walls = time.perf_counter() - t0
-    paths = len(d) * args.rays
-    print(f"wall tracer (bare Al): {paths} paths in {dt_walls:.2f} s = {paths / dt_walls / 1e6:.2f} M paths/s, "
-          f"{tr.mean_bounces.mean():.2f} surface hits per path")
+    paths = len(d) * args.samples
+    print(f"wall path tracer (bare Al): {paths} paths in {dt_walls:.2f} s = {paths / dt_walls / 1e6:.2f} M paths/s; "
+          f"largest reflected SE {w.reflected_se.max():.2e}")
     t0 = time.perf_counter()
     rmap = A.response_map(ap, nside=16, samples=1024)
     dt_map = time.perf_counter() - t0

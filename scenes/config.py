@@ -47,7 +47,8 @@ DIODE_KEYS = ("name", "panel", "part", "normal", "az_deg", "el_deg", "at_mm", "f
 WINDOW_KEYS = ("index", "thickness_mm", "gap_mm", "size_mm", "absorption_per_mm")
 # A diode on a part sits on the part's surface: its at_mm may miss the surface by this much (CAD rounding)
 ON_SURFACE_TOLERANCE_M = 0.5e-3
-WELL_KEYS = ("height_mm", "opening_mm")
+WELL_KEYS = ("height_mm", "opening_mm", "chamfer_mm", "chamfer_deg")
+WELL_REQUIRED = ("height_mm", "opening_mm")
 TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part")
 PART_KEYS = ("name", "file", "unit", "box_mm", "translate_mm", "rotate_deg", "hinge", "material")
 HINGE_KEYS = ("axis", "point_mm", "angle_deg")
@@ -382,20 +383,22 @@ def _aperture_for(fov_deg, well, where):
         if not isinstance(well, dict):
             raise ConfigError(f"{where}: 'well' must be a table {{height_mm = ..., opening_mm = [x, y]}}")
         _check_keys(well, WELL_KEYS, f"{where} well")
-        missing = [k for k in WELL_KEYS if k not in well]
+        missing = [k for k in WELL_REQUIRED if k not in well]
         if missing:
             raise ConfigError(f"{where}: the well needs {', '.join(missing)} (mm)")
         side = float(np.sqrt(BPW34_AREA_M2))
         try:
             ox, oy = (float(x) * MM for x in well["opening_mm"])
-            aperture = WellAperture(side, side, ox, oy, float(well["height_mm"]) * MM)
+            aperture = WellAperture(side, side, ox, oy, float(well["height_mm"]) * MM,
+                                    float(well.get("chamfer_mm", 0.0)) * MM, float(well.get("chamfer_deg", 0.0)))
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"{where}: invalid well {well!r}: {exc}") from None
         if aperture.height_m == 0:
             full_deg = 90.0
         else:
-            half_gap = (min(aperture.opening_x_m, aperture.opening_y_m) - side) / 2.0
-            full_deg = float(np.degrees(np.arctan2(half_gap, aperture.height_m)))
+            _, _, wx, wy, h_low, tx, ty, h_top = aperture.rims       # fully lit while inside both rims
+            full_deg = float(np.degrees(min(np.arctan2(min(wx, wy) - side / 2.0, h_low),
+                                            np.arctan2(min(tx, ty) - side / 2.0, h_top))))
         return aperture, (full_deg if fov_deg is None else float(fov_deg))
     if fov_deg is None:
         raise ConfigError(f"{where}: give fov_deg (or an explicit well)")
@@ -571,6 +574,11 @@ def _build_diode(index, table, body, mount, parts=()):
         raise ConfigError(f"{where}: at_mm must be [lateral, along] in mm on the panel, got {table.get('at_mm')!r}")
     aperture, fov = _aperture_for(table.get("fov_deg"), table.get("well"), where)
     window = _window_for(table.get("window"), aperture, where)
+    widen_m = aperture.rims[5] - aperture.rims[2]
+    if widen_m >= mount.wall_m:
+        raise ConfigError(f"{where}: the well's chamfer widens the opening by {widen_m / MM:.3f} mm on each side, "
+                          f"through the {mount.wall_m / MM:g} mm wall; make chamfer_mm x tan(chamfer_deg) smaller "
+                          "than [mount] wall_mm")
     frame = diode_frame(n)
     at_m = at * MM
     centre = _place(frame, panel, at_m, aperture, body, mount)

@@ -14,7 +14,14 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
 - ``well_k``: the hollow square well, straight walls ``mount.wall_m`` thick
   from the diode surface up to ``aperture.height_m``; its inner cross-section is
   the aperture's opening and its walls run along the diode frame's u and v axes
-  (:func:`simcore.shapes.aperture.diode_frame`). Absent for a bare diode (height 0).
+  (:func:`simcore.shapes.aperture.diode_frame`); a chamfered well's top ``chamfer_m``
+  widens outward to the top rim (:attr:`simcore.shapes.aperture.WellAperture.rims`).
+  Absent for a bare diode (height 0).
+- ``plug_k``: the diode's own absorbing body, a black block filling the floor's hole from
+  ``PLUG_DEPTH_M`` under the diode surface down to the floor's underside. The renderer starts its paths
+  on the diode surface, which is not in the mesh; light coming back onto the diode (reflected by walls,
+  parts or the body) ends on the plug instead of falling through the hole onto the ramp and the hole's
+  sides. Material 'black' whatever the mount's.
 - ``part_NAME``: each extra part of the configuration (``[[part]]``: a mesh file or a box, placed and
   hinged, :class:`scenes.config.Part`), as given (not necessarily closed).
 - ``diode_k`` (only in :func:`build_parts` with ``include_diodes=True`` and in
@@ -23,7 +30,7 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
 Every part is a closed, consistently outward-oriented mesh (the diode squares
 excepted); parts touch but do not overlap. Each part's ``metadata['material']`` is its
 surface material (:mod:`scenes.materials`: ``[body] material`` for the body,
-``[mount] material`` for ramps, floors and wells; diode squares 'black').
+``[mount] material`` for ramps, floors and wells; plugs and diode squares 'black').
 """
 from __future__ import annotations
 
@@ -34,6 +41,10 @@ import trimesh
 
 from scenes.config import SatelliteConfig, panel_axes
 
+# The plug's top under the diode surface: below the path tracer's 2 um spawn offset (paths leaving the diode
+# start above it), far above float32 resolution at the satellite's scale (~1e-8 m at 0.1 m).
+PLUG_DEPTH_M = 1e-6
+
 _SQUARE = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)  # counter-clockwise in (u, v)
 
 
@@ -42,27 +53,34 @@ def _to_body(local, frame, centre):
     return centre + local @ frame
 
 
-def _square_ring(outer_half, inner_half, n0, n1):
+def _square_ring(outer_half, inner_half, n0, n1, inner_levels=()):
     """Return (vertices, faces) of a closed square ring prism in local (u, v, n) coordinates.
 
-    ``outer_half``/``inner_half``: (hx, hy) half sides; the solid spans n0..n1 along n.
+    ``outer_half``/``inner_half``: (hx, hy) half sides; the solid spans n0..n1 along n. ``inner_levels``:
+    further (n, (hx, hy)) of the hole above n0 in rising n, the last at n1 (a chamfer: the hole widening
+    toward the top); none: the hole is ``inner_half`` from n0 to n1.
     """
-    o, i = _SQUARE * outer_half, _SQUARE * inner_half
-    verts = np.vstack([np.column_stack([o, np.full(4, n0)]), np.column_stack([i, np.full(4, n0)]),
-                       np.column_stack([o, np.full(4, n1)]), np.column_stack([i, np.full(4, n1)])])
-    o0, i0, o1, i1 = 0, 4, 8, 12
+    levels = [(n0, np.asarray(inner_half))] + [(n, np.asarray(h)) for n, h in inner_levels]
+    if len(levels) == 1:
+        levels.append((n1, np.asarray(inner_half)))
+    o = _SQUARE * outer_half
+    verts = [np.column_stack([o, np.full(4, n0)]), np.column_stack([o, np.full(4, n1)])]
+    verts += [np.column_stack([_SQUARE * h, np.full(4, n)]) for n, h in levels]
+    verts = np.vstack(verts)
+    o0, o1, i0, i1 = 0, 4, 8, 8 + 4 * (len(levels) - 1)
     faces = []
     for a in range(4):
         b = (a + 1) % 4
-        faces += [[o0 + a, o0 + b, o1 + b], [o0 + a, o1 + b, o1 + a],      # outer wall, outward
-                  [i0 + a, i1 + b, i0 + b], [i0 + a, i1 + a, i1 + b],      # inner wall, facing the hole
-                  [o1 + a, o1 + b, i1 + b], [o1 + a, i1 + b, i1 + a],      # top ring, +n
+        faces += [[o0 + a, o0 + b, o1 + b], [o0 + a, o1 + b, o1 + a]]      # outer wall, outward
+        for lo in range(i0, i1, 4):                                        # inner wall, facing the hole
+            faces += [[lo + a, lo + 4 + b, lo + b], [lo + a, lo + 4 + a, lo + 4 + b]]
+        faces += [[o1 + a, o1 + b, i1 + b], [o1 + a, i1 + b, i1 + a],      # top ring, +n
                   [o0 + a, i0 + b, o0 + b], [o0 + a, i0 + a, i0 + b]]      # bottom ring, -n
     return verts, np.array(faces)
 
 
-def _ring_mesh(outer_half, inner_half, n0, n1, frame, centre):
-    verts, faces = _square_ring(np.asarray(outer_half), np.asarray(inner_half), n0, n1)
+def _ring_mesh(outer_half, inner_half, n0, n1, frame, centre, inner_levels=()):
+    verts, faces = _square_ring(np.asarray(outer_half), np.asarray(inner_half), n0, n1, inner_levels)
     return trimesh.Trimesh(_to_body(verts, frame, centre), faces, process=True)
 
 
@@ -72,7 +90,8 @@ def body_mesh(config):
 
 
 def mount_meshes(config, k):
-    """Return {'ramp', 'floor', 'well'} meshes of diode k's mount (body frame, m); 'well' absent when bare."""
+    """Return {'ramp', 'floor', 'well', 'plug'} meshes of diode k's mount (body frame, m); 'well' absent when
+    bare. The plug's ``metadata['material']`` is 'black' (the others take the mount's material)."""
     d, m, body = config.diodes[k], config.mount, config.body
     ap, frame, centre = d.aperture, d.frame_body, d.position_body_m
     outer = np.array([ap.opening_x_m, ap.opening_y_m]) / 2.0 + m.wall_m
@@ -87,8 +106,14 @@ def mount_meshes(config, k):
             parts["ramp"] = ramp
     parts["floor"] = _ring_mesh(outer, [ap.diode_x_m / 2.0, ap.diode_y_m / 2.0], -m.floor_m, 0.0, frame, centre)
     if ap.height_m > 0:
-        parts["well"] = _ring_mesh(outer, [ap.opening_x_m / 2.0, ap.opening_y_m / 2.0], 0.0, ap.height_m,
-                                   frame, centre)
+        _, _, wx, wy, h_low, tx, ty, h_top = ap.rims
+        bevel = [(h_low, (wx, wy)), (h_top, (tx, ty))] if (tx, ty) != (wx, wy) and h_top > h_low else ()
+        parts["well"] = _ring_mesh(outer, [wx, wy], 0.0, ap.height_m, frame, centre, bevel)
+    half_diode = np.array([ap.diode_x_m, ap.diode_y_m]) / 2.0
+    plug_local = np.column_stack([np.vstack([_SQUARE * half_diode] * 2),
+                                  np.repeat([-m.floor_m, -PLUG_DEPTH_M], 4)])
+    parts["plug"] = trimesh.convex.convex_hull(_to_body(plug_local, frame, centre))
+    parts["plug"].metadata["material"] = "black"
     return parts
 
 
@@ -107,14 +132,15 @@ def diode_surfaces(config):
 
 
 def build_parts(config, include_diodes=False):
-    """Return the named parts {'body', 'ramp_k', 'floor_k', 'well_k', 'part_NAME'[, 'diode_k']} (body frame, m)."""
+    """Return the named parts {'body', 'ramp_k', 'floor_k', 'well_k', 'plug_k', 'part_NAME'[, 'diode_k']} (body
+    frame, m)."""
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
     parts = {"body": body_mesh(config)}
     parts["body"].metadata["material"] = config.body.material
     for k in range(config.n_diodes):
         for name, mesh in mount_meshes(config, k).items():
-            mesh.metadata["material"] = config.mount.material
+            mesh.metadata.setdefault("material", config.mount.material)
             parts[f"{name}_{k}"] = mesh
     for part in config.parts:
         mesh = trimesh.Trimesh(part.vertices_m, part.faces, process=False)
@@ -130,7 +156,7 @@ def build_parts(config, include_diodes=False):
 
 
 def build_satellite_mesh(config):
-    """Return the satellite's occluder (body, ramps, floors, wells) as one mesh, body frame, metres.
+    """Return the satellite's occluder (body, ramps, floors, wells, plugs, parts) as one mesh, body frame, metres.
 
     ``mesh.metadata['parts']`` maps each part name to its (first, stop) face range and
     ``mesh.metadata['materials']`` to its material (the renderer path-traces the parts that are

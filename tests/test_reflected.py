@@ -408,18 +408,19 @@ def test_rough_conductor_plate_matches_microfacet_quadrature(alpha, oracle_alpha
 
 # ------------------------------------------------------------------------------------------ another tracer
 @pytest.mark.parametrize("reference, agrees", [
-    ("aluminium", True),
-    ("diffuse", False),                                 # negative: the other tracer with other walls
+    ("fov70 bare Al (alpha 0.1) black floor", True),
+    ("fov70 diffuse rho 0.5 black floor", False),       # negative: the other tracer with other walls
 ])
 def test_well_walls_agree_with_the_source_side_wall_tracer(reference, agrees):
-    # Another implementation: simcore.render.walls traces the same well (FOV 70, eq. 4.15 design) from the
-    # opening toward the diode (the adjoint direction) with its own sampling; walls of bare aluminium
-    # (GGX alpha 0.1, Mitsuba's "Al"), black floor. Its `reflected` response to a unit collimated beam is
-    # what the path tracer reads with E = 1 (its 0.27 deg disc blurs a response that varies over degrees).
-    from simcore.render.walls import WallMaterial, trace_well
+    # Another implementation: the retired simcore/render/walls.py (commit 4277e88; its numbers recorded in
+    # tests/walls_oracle_4277e88.py) traced the same well (FOV 70, eq. 4.15 design) from the opening toward the
+    # diode (the adjoint direction) with its own sampling; walls of bare aluminium (GGX alpha 0.1, Mitsuba's
+    # "Al"), black floor. Its `reflected` response to a unit collimated beam is what the path tracer reads
+    # with E = 1 (its 0.27 deg disc blurs a response that varies over degrees).
+    from walls_oracle_4277e88 import ORACLE
     from simcore.shapes.aperture import WellAperture
     ap = WellAperture.design(70.0)
-    alu = WallMaterial.aluminium(0.1)
+    ref = ORACLE[reference]
     corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * [ap.opening_x_m / 2, ap.opening_y_m / 2]
     verts, faces = [], []
     for i in range(4):
@@ -428,12 +429,9 @@ def test_well_walls_agree_with_the_source_side_wall_tracer(reference, agrees):
                   [*corners[i], ap.height_m]]
         faces += [[base, base + 1, base + 2], [base, base + 2, base + 3]]
     mesh = trimesh.Trimesh(np.array(verts), np.array(faces), process=False)
-    mesh.metadata["material"] = alu.bsdf_dict()
+    mesh.metadata["material"] = {"type": "roughconductor", "material": "Al", "alpha": 0.1, "distribution": "ggx"}
     ds = DiodeSurfaces(np.zeros((1, 3)), np.eye(3)[None], [[ap.diode_x_m, ap.diode_y_m]], (ap,))
-    zen, az = np.radians([30, 50, 65, 75]), np.radians([0, 0, 30, 45])
-    d = np.stack([np.sin(zen) * np.cos(az), np.sin(zen) * np.sin(az), np.cos(zen)], 1)
+    d = np.array(ref["d_diode"])
     res = Renderer(ds, mesh, e_sun_w_m2=1.0).render(d, seed=1, reflected_samples=65536)
-    ref = trace_well(ap, d, alu if reference == "aluminium" else WallMaterial.diffuse(0.5), rays=400_000, seed=1,
-                     reflective_floor=False)
-    z = (res.reflected_w_m2[:, 0] - ref.reflected) / np.hypot(res.reflected_se_w_m2[:, 0], ref.reflected_se)
+    z = (res.reflected_w_m2[:, 0] - ref["reflected"]) / np.hypot(res.reflected_se_w_m2[:, 0], ref["reflected_se"])
     assert bool(np.all(np.abs(z) < Z_MAX)) == agrees, z

@@ -6,7 +6,7 @@ import pytest
 import trimesh
 
 from scenes.config import ConfigError, SatelliteConfig, list_configs
-from scenes.meshes import build_parts, build_satellite_mesh, diode_surfaces, export
+from scenes.meshes import PLUG_DEPTH_M, build_parts, build_satellite_mesh, diode_surfaces, export
 from simcore.shapes.aperture import WellAperture, diode_frame
 
 SHIPPED = ["tilt0_fov90", "tilt20_fov70", "tilt20_fov75", "tilt25_fov70", "tilt25_fov75", "tilt30_fov70",
@@ -181,10 +181,14 @@ def test_diode_surface_is_a_hole_at_its_position(name):
     cfg = SatelliteConfig.load(name, extra_flat_diodes=name != "tilt0_fov90")
     occ = build_satellite_mesh(cfg)
     n, pos = cfg.normals, cfg.positions_m
-    # down the normal onto the diode centre: the first surface is the ramp's top under the floor's hole,
-    # floor_m below the diode surface (the diode itself is not an occluder)
+    # down the normal onto the diode centre: the first surface is the black plug filling the floor's hole,
+    # PLUG_DEPTH_M below the diode surface (the diode itself is not an occluder); without the plugs, the ramp's
+    # top under the hole, floor_m below
     t = first_hit(occ, pos + 3e-3 * n, -n)
-    assert np.allclose(t, 3e-3 + cfg.mount.floor_m, atol=1e-9)
+    assert np.allclose(t, 3e-3 + PLUG_DEPTH_M, atol=1e-9)
+    parts = build_parts(cfg)
+    bare = trimesh.util.concatenate([m for name, m in parts.items() if not name.startswith("plug_")])
+    assert np.allclose(first_hit(bare, pos + 3e-3 * n, -n), 3e-3 + cfg.mount.floor_m, atol=1e-9)
     # straight out of the diode: open sky
     assert np.all(np.isinf(first_hit(occ, pos + 1e-9 * n, n)))
     surf = diode_surfaces(cfg)

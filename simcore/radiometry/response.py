@@ -131,17 +131,24 @@ class Eq415Response:
 
 def _well_kernel(ap: WellAperture):
     """Return the kernel of a :class:`WellAperture`: lit fraction x cos, the overlap of aperture.py in
-    homogeneous form (multiplied through by d_n so no division is needed)."""
+    homogeneous form (multiplied through by d_n so no division is needed), with both rims of a chamfer."""
     ax, ay = ap.diode_x_m / 2, ap.diode_y_m / 2
     wx, wy = ap.opening_x_m / 2, ap.opening_y_m / 2
-    h = ap.height_m
+    h = ap.height_m - ap.chamfer_m
+    tx, ty, th = ap.rims[5:8]
+    chamfered = (tx, ty, th) != (wx, wy, h)
     scale = 1.0 / (ap.diode_x_m * ap.diode_y_m)
 
     def kernel(du, dv, dn, ops):
         # overlap of [-a, a] with [-w - s, w - s], s = h du/dn, times dn (dn > 0)
         hx, hy = h * du, h * dv
-        lx = ops.maximum(ops.minimum(ax * dn, wx * dn - hx) - ops.maximum(-ax * dn, -wx * dn - hx), 0.0)
-        ly = ops.maximum(ops.minimum(ay * dn, wy * dn - hy) - ops.maximum(-ay * dn, -wy * dn - hy), 0.0)
+        hi_x, lo_x = ops.minimum(ax * dn, wx * dn - hx), ops.maximum(-ax * dn, -wx * dn - hx)
+        hi_y, lo_y = ops.minimum(ay * dn, wy * dn - hy), ops.maximum(-ay * dn, -wy * dn - hy)
+        if chamfered:      # ... and with the top rim's [-w' - s', w' - s'] (WellAperture.rims)
+            hi_x, lo_x = ops.minimum(hi_x, tx * dn - th * du), ops.maximum(lo_x, -tx * dn - th * du)
+            hi_y, lo_y = ops.minimum(hi_y, ty * dn - th * dv), ops.maximum(lo_y, -ty * dn - th * dv)
+        lx = ops.maximum(hi_x - lo_x, 0.0)
+        ly = ops.maximum(hi_y - lo_y, 0.0)
         # lit fraction x cos = (lx/dn)(ly/dn)/(4 a_x a_y) x dn = lx ly / (dn (4 a_x a_y))
         return ops.where(dn > 0, lx * ly * scale / ops.maximum(dn, ops.tiny), 0.0)
 

@@ -1,3 +1,3 @@
 """The Monte-Carlo renderer (Mitsuba 3 / Dr.Jit): diode irradiance along an orbit with standard
-errors (:mod:`simcore.render.irradiance`) and the wall-reflection tracer of apertures
-(:mod:`simcore.render.walls`). Dr.Jit's libLLVM is configured when a renderer is first built."""
+errors (:mod:`simcore.render.irradiance`), reflections on the spacecraft (aperture walls included) path
+traced. Dr.Jit's libLLVM is configured when a renderer is first built."""

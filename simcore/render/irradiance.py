@@ -95,7 +95,7 @@ from simcore import _llvm
 from simcore._llvm import host_array
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
 from simcore.environment.maps import named_map
-from simcore.shapes.aperture import lit_rectangle
+from simcore.shapes.aperture import lit_rectangle_of
 
 SUN_ANGULAR_RADIUS_RAD = float(np.arcsin(R_SUN_M / AU_M))  # 0.2666 deg: the 0.53 deg disc at 1 AU
 
@@ -412,16 +412,16 @@ class Renderer:
         self._mirror_normals = None
         self._pt = self._build_pt_scene(occluder_mesh)
         self._diode_f32 = self._diode_arrays()
-        # Aperture hint for the albedo sampling (half diode x/y, half opening x/y, height);
-        # a bare diode (opening = diode, height 0) when unknown.
+        # Aperture hint for the albedo sampling (WellAperture.rims: half diode x/y, half opening x/y and
+        # height of the lower and the top rim); a bare diode (opening = diode, height 0) when unknown.
         aps = diodes.apertures
         half = diodes.sizes_m / 2
         if aps is None:
-            self._ap_params = np.concatenate([half, half, np.zeros((len(half), 1))], axis=1)
+            zero = np.zeros((len(half), 1))
+            self._ap_params = np.concatenate([half, half, zero, half, zero], axis=1)
         else:
             # the diode's own sides (where the points are sampled) with the well's opening
-            self._ap_params = np.array([[hx, hy, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
-                                        for (hx, hy), a in zip(half, aps)])
+            self._ap_params = np.array([[hx, hy, *a.rims[2:]] for (hx, hy), a in zip(half, aps)])
         self.control_variate = bool(control_variate) and aps is not None
         self._win = _window_params(diodes)
         self._vis = self._visibility_table()
@@ -583,10 +583,9 @@ class Renderer:
         dr, mi = self._dr, self._mi
         fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
-        ax, ay, wx, wy, h = [dr.gather(mi.Float, host_array(mi.Float, t["ap"][:, k]), task)
-                             for k in range(5)]          # half diode, half opening, height
-        return lit_rectangle(ax, ay, wx, wy, h, du, dv, dn, maximum=dr.maximum, minimum=dr.minimum,
-                             where=dr.select)
+        rims = [dr.gather(mi.Float, host_array(mi.Float, t["ap"][:, k]), task)
+                for k in range(8)]          # half diode; half opening and height of the lower and top rims
+        return lit_rectangle_of(rims, du, dv, dn, maximum=dr.maximum, minimum=dr.minimum, where=dr.select)
 
     def _split_point(self, t, task, d, fx, fy):
         """Return (fx, fy, weight) of the diode point for a lane of mode 0 (plain: the point as
@@ -1130,7 +1129,7 @@ class Renderer:
         jobs = []
         for k in range(K):
             if self.control_variate:
-                x0, x1, y0, y1, lit = lit_rectangle(*self._ap_params[k], local[..., 0], local[..., 1], local[..., 2])
+                x0, x1, y0, y1, lit = lit_rectangle_of(self._ap_params[k], local[..., 0], local[..., 1], local[..., 2])
             else:
                 x0, y0 = np.full(TH.shape, -0.5), np.full(TH.shape, -0.5)
                 x1, y1, lit = -x0, -y0, np.ones(TH.shape)
@@ -1180,7 +1179,7 @@ class Renderer:
                     continue
                 local = np.stack([np.sin(th[i]) * np.cos(ph[j]), np.sin(th[i]) * np.sin(ph[j]), np.cos(th[i])], -1)
                 if self.control_variate:
-                    x0, x1, y0, y1, lit = lit_rectangle(*self._ap_params[k], local[:, 0], local[:, 1], local[:, 2])
+                    x0, x1, y0, y1, lit = lit_rectangle_of(self._ap_params[k], local[:, 0], local[:, 1], local[:, 2])
                 else:
                     x0, y0 = np.full(len(i), -0.5), np.full(len(i), -0.5)
                     x1, y1, lit = -x0, -y0, np.ones(len(i))
@@ -1664,8 +1663,8 @@ class Renderer:
         ap = base["ap"]
         if self.control_variate:
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                x0, x1, y0, y1, lit = lit_rectangle(*(ap[:, None, i] for i in range(5)),
-                                                    dd[..., 0], dd[..., 1], dd[..., 2])
+                x0, x1, y0, y1, lit = lit_rectangle_of([ap[:, None, i] for i in range(8)],
+                                                       dd[..., 0], dd[..., 1], dd[..., 2])
         else:
             x0, y0 = np.full((T, D), -0.5), np.full((T, D), -0.5)
             x1, y1 = -x0, -y0
@@ -1704,7 +1703,7 @@ class Renderer:
         ap = self._ap_params[k_]
         dd = np.einsum("tij,tj->ti", self.diodes.frames[k_], d_body)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            return lit_rectangle(ap[:, 0], ap[:, 1], ap[:, 2], ap[:, 3], ap[:, 4], dd[:, 0], dd[:, 1], dd[:, 2])[4]
+            return lit_rectangle_of(ap.T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
 
 
 def _plane_normals(normals, max_planes=_MAX_MIRROR_PLANES):

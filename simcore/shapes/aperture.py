@@ -16,6 +16,16 @@ of the diode is the overlap of the diode with the opening shifted that way.
 The opening's prism is convex and contains the diode, so no wall below the
 rim can block a ray that entered the opening: the overlap is exact.
 
+A chamfer (``chamfer_m``, ``chamfer_deg``: a knife-edge or countersunk rim) bevels
+the top ``c`` of the walls outward at ``alpha`` from the normal: the half opening
+is ``w/2`` up to ``h - c`` and ``w/2 + (z - h + c) tan(alpha)`` above. The prism
+stays convex, and a ray's offset from a wall is linear in ``z`` on each of the two
+pieces, so a ray from the diode is inside for all ``z`` iff it is inside at the
+lower rim (``z = h - c``) and at the top rim (``z = h``): the lit part is the
+intersection of the diode with the two shifted rims, a rectangle
+(:func:`lit_rectangle` with ``top``, :attr:`WellAperture.rims`). A slit is a
+well of unequal sides (opening at least the diode's size along each).
+
 A well realises a thesis-style FOV (eq. 4.15) when the whole diode is lit up
 to ``fov`` along each wall axis and no light reaches it beyond ``cutoff``
 (83 deg in the thesis): ``w - a = 2 h tan(fov)`` and ``w + a = 2 h tan(cutoff)``.
@@ -29,35 +39,52 @@ from simcore.constants import BPW34_AREA_M2, EQ415_CUTOFF_COS
 EQ415_CUTOFF_DEG = float(np.degrees(np.arccos(EQ415_CUTOFF_COS)))
 
 
-def lit_rectangle(half_diode_x, half_diode_y, half_open_x, half_open_y, height, du, dv, dn, *,
+def lit_rectangle(half_diode_x, half_diode_y, half_open_x, half_open_y, height, du, dv, dn, *, top=None,
                   maximum=np.maximum, minimum=np.minimum, where=np.where):
     """Return (x0, x1, y0, y1, lit) for directions with diode-frame components (du, dv, dn): the
     rectangle of the diode (fractions of its sides, centred, so within [-1/2, 1/2]) whose rays
     toward the direction leave through the well's opening (the opening shifted by -h tan along
     each wall axis), and its area fraction, the lit fraction (0 where dn <= 0).
 
-    Array-library neutral: numpy by default; the renderer passes Dr.Jit's maximum, minimum and
-    select, so the analytic model and the renderer share this one geometry.
+    ``top``: an optional second rim (half_open_x, half_open_y, height) the rays must also pass, e.g.
+    the top of a chamfer (:attr:`WellAperture.rims`); the lit rectangle is the intersection of the
+    diode with both shifted rims. Array-library neutral: numpy by default; the renderer passes Dr.Jit's
+    maximum, minimum and select, so the analytic model and the renderer share this one geometry.
     """
     inv_n = 1.0 / maximum(dn, 1e-12)
     sx, sy = height * du * inv_n, height * dv * inv_n
-    x0 = maximum(-half_diode_x, -half_open_x - sx) / (2.0 * half_diode_x)
-    x1 = minimum(half_diode_x, half_open_x - sx) / (2.0 * half_diode_x)
-    y0 = maximum(-half_diode_y, -half_open_y - sy) / (2.0 * half_diode_y)
-    y1 = minimum(half_diode_y, half_open_y - sy) / (2.0 * half_diode_y)
+    lo_x, hi_x = maximum(-half_diode_x, -half_open_x - sx), minimum(half_diode_x, half_open_x - sx)
+    lo_y, hi_y = maximum(-half_diode_y, -half_open_y - sy), minimum(half_diode_y, half_open_y - sy)
+    if top is not None:
+        top_x, top_y, top_h = top
+        tx, ty = top_h * du * inv_n, top_h * dv * inv_n
+        lo_x, hi_x = maximum(lo_x, -top_x - tx), minimum(hi_x, top_x - tx)
+        lo_y, hi_y = maximum(lo_y, -top_y - ty), minimum(hi_y, top_y - ty)
+    x0, x1 = lo_x / (2.0 * half_diode_x), hi_x / (2.0 * half_diode_x)
+    y0, y1 = lo_y / (2.0 * half_diode_y), hi_y / (2.0 * half_diode_y)
     lit = where(dn > 0, maximum(x1 - x0, 0.0) * maximum(y1 - y0, 0.0), 0.0)
     return x0, x1, y0, y1, lit
 
 
+def lit_rectangle_of(params, du, dv, dn, **ops):
+    """Return :func:`lit_rectangle` for an aperture's 8 parameters ``params`` (a sequence: half diode
+    x, y, half opening x, y and height of the lower rim, then of the top rim; :attr:`WellAperture.rims`,
+    or its columns for many diodes; 5 parameters: one rim)."""
+    p = list(params)
+    return lit_rectangle(*p[:5], du, dv, dn, top=p[5:8] if len(p) > 5 else None, **ops)
+
+
 @dataclass(frozen=True)
 class WellAperture:
-    """A rectangular well of straight walls over a rectangular diode (metres)."""
+    """A rectangular well of straight walls, optionally chamfered at the top, over a rectangular diode (metres)."""
 
     diode_x_m: float
     diode_y_m: float
     opening_x_m: float
     opening_y_m: float
     height_m: float
+    chamfer_m: float = 0.0
+    chamfer_deg: float = 0.0
 
     def __post_init__(self):
         for name in ("diode_x_m", "diode_y_m", "opening_x_m", "opening_y_m"):
@@ -69,6 +96,21 @@ class WellAperture:
             raise ValueError("the well's opening must be at least as large as the diode it sits over "
                              f"(opening {self.opening_x_m} x {self.opening_y_m} m, "
                              f"diode {self.diode_x_m} x {self.diode_y_m} m)")
+        if not (0.0 <= self.chamfer_m <= self.height_m and np.isfinite(self.chamfer_m)):
+            raise ValueError(f"the chamfer ({self.chamfer_m} m) must lie between 0 and the well's height "
+                             f"({self.height_m} m)")
+        if not (0.0 <= self.chamfer_deg < 90.0):
+            raise ValueError(f"the chamfer angle must lie in [0, 90) deg from the diode normal, got {self.chamfer_deg}")
+
+    @property
+    def rims(self):
+        """Return the 8 parameters of the geometry (m): half diode x, y; the straight walls' half opening x, y and
+        their top (the lower rim, height - chamfer); the top rim's half opening x, y (widened by chamfer x
+        tan(chamfer_deg) on each side) and its height. For a well without chamfer both rims are the same."""
+        widen = self.chamfer_m * float(np.tan(np.radians(self.chamfer_deg)))
+        wx, wy = self.opening_x_m / 2, self.opening_y_m / 2
+        return (self.diode_x_m / 2, self.diode_y_m / 2, wx, wy, self.height_m - self.chamfer_m,
+                wx + widen, wy + widen, self.height_m)
 
     @classmethod
     def bare(cls, diode_area_m2=BPW34_AREA_M2):
@@ -99,8 +141,7 @@ class WellAperture:
         towards the source, in the diode frame (u, v, n)."""
         d = np.asarray(d_diode, dtype=float)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            return lit_rectangle(self.diode_x_m / 2, self.diode_y_m / 2, self.opening_x_m / 2,
-                                 self.opening_y_m / 2, self.height_m, d[..., 0], d[..., 1], d[..., 2])[4]
+            return lit_rectangle_of(self.rims, d[..., 0], d[..., 1], d[..., 2])[4]
 
     def response(self, d_diode):
         """Return the angular response (lit fraction x cos incidence) for directions (..., 3)

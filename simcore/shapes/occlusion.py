@@ -21,7 +21,7 @@ renderer sees them.
 """
 import numpy as np
 
-from simcore.shapes.aperture import lit_rectangle
+from simcore.shapes.aperture import lit_rectangle_of
 
 
 
@@ -111,8 +111,9 @@ def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m)
     """Return the lit fractions (T,) of T diodes, each toward its own direction: the well's overlap
     minus the body box's shadow, exact.
 
-    ``aperture_params`` (T, 5): half diode sides, half opening sides and well height (m) of each
-    diode; ``frames`` (T, 3, 3) rows (u, v, n); ``positions_m`` (T, 3) diode centres; ``d_body`` (T, 3)
+    ``aperture_params`` (T, 8): :attr:`simcore.shapes.aperture.WellAperture.rims` of each diode (half
+    diode sides, half opening sides and height of the lower and the top rim, m; (T, 5): one rim);
+    ``frames`` (T, 3, 3) rows (u, v, n); ``positions_m`` (T, 3) diode centres; ``d_body`` (T, 3)
     unit directions toward the source; ``half_m`` the box's half extents (body frame, centred).
 
     A point ``x = (X, Y)`` of the diode plane is shadowed when its ray ``p + X u + Y v + t d`` meets
@@ -129,13 +130,15 @@ def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m)
     T = len(d)
     u, v, n = F[:, 0], F[:, 1], F[:, 2]
     du, dv, dn = (np.einsum("tj,tj->t", d, w) for w in (u, v, n))
-    ax, ay, wx, wy, h = ap.T
+    ax, ay = ap.T[:2]
     front = dn > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sx = np.where(front, -h * du / np.where(front, dn, 1.0), 0.0)
-        sy = np.where(front, -h * dv / np.where(front, dn, 1.0), 0.0)
-    x0, x1 = np.maximum(-ax, sx - wx), np.minimum(ax, sx + wx)
-    y0, y1 = np.maximum(-ay, sy - wy), np.minimum(ay, sy + wy)
+    x0, x1, y0, y1 = -ax, ax, -ay, ay
+    for wx, wy, h in (ap.T[2:5], ap.T[5:8]) if ap.shape[1] > 5 else (ap.T[2:5],):     # each rim, shifted
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sx = np.where(front, -h * du / np.where(front, dn, 1.0), 0.0)
+            sy = np.where(front, -h * dv / np.where(front, dn, 1.0), 0.0)
+        x0, x1 = np.maximum(x0, sx - wx), np.minimum(x1, sx + wx)
+        y0, y1 = np.maximum(y0, sy - wy), np.minimum(y1, sy + wy)
     lit = np.where(front, np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None), 0.0)
     poly = np.stack([np.stack([x0, y0], 1), np.stack([x1, y0], 1), np.stack([x1, y1], 1), np.stack([x0, y1], 1)], 1)
     count = np.where(lit > 0, 4, 0)
@@ -171,24 +174,22 @@ def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m)
 def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
     """Return the lit fraction (0..1) of one diode for one direction: its well's overlap minus the
     body box's shadow, exact (:func:`lit_fractions_with_box` for one)."""
-    params = [[aperture.diode_x_m / 2, aperture.diode_y_m / 2, aperture.opening_x_m / 2,
-               aperture.opening_y_m / 2, aperture.height_m]]
+    params = [aperture.rims]
     return float(lit_fractions_with_box(params, [frame], [position_m], [d_body], half_m)[0])
 
 
 def _aperture_params(apertures):
-    """Return (K, 5): half diode sides, half opening sides and well height (m) of each aperture."""
-    return np.array([[a.diode_x_m / 2, a.diode_y_m / 2, a.opening_x_m / 2, a.opening_y_m / 2, a.height_m]
-                     for a in apertures])
+    """Return (K, 8): :attr:`simcore.shapes.aperture.WellAperture.rims` of each aperture (m)."""
+    return np.array([a.rims for a in apertures])
 
 
 def _visibility_below(params, frames, positions_m, d, half_m):
     """Return (T,): lit fraction with the box over the well's own lit fraction for T diodes (``params``
-    (T, 5), ``frames`` (T, 3, 3), ``positions_m`` (T, 3)) each toward its own direction ``d`` (T, 3) below
+    (T, 8), ``frames`` (T, 3, 3), ``positions_m`` (T, 3)) each toward its own direction ``d`` (T, 3) below
     its panel and in front of it; NaN where the well itself lets no light through."""
     dd = np.einsum("tij,tj->ti", frames, d)                     # the directions in the diode frames
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        own = lit_rectangle(*params.T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
+        own = lit_rectangle_of(params.T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
     vis = np.full(len(d), np.nan)
     lit = own > 0
     vis[lit] = lit_fractions_with_box(params[lit], frames[lit], positions_m[lit], d[lit], half_m) / own[lit]

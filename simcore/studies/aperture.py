@@ -11,9 +11,11 @@ What each part answers (the models it compares):
   :func:`response_map` and :func:`response_angles` (the 50 % / 1 % angles).
 * :func:`design_aperture` -- opening and height from a target FOV, cut-off, diode area
   and height limit.
-* :mod:`simcore.render.walls` -- walls with a BSDF (matte black, bare aluminium, a user
-  value); :func:`wall_albedo_effect` puts the tabulated response into the albedo sum
-  of :func:`simcore.radiometry.analytic.diode_irradiance` along an orbit.
+* :func:`wall_response` -- walls (and the floor plate) of any material (:mod:`scenes.materials`
+  names or Mitsuba BSDF dicts: matte black, bare aluminium, a user value), path traced by the
+  renderer's ``reflected`` component (:func:`well_renderer`); :func:`angular_cuts`,
+  :func:`reflectance_series` and :func:`wall_albedo_effect` (a :class:`TabulatedResponse` of it in the
+  albedo sum of :func:`simcore.radiometry.analytic.diode_irradiance` along an orbit).
 * :func:`self_shadowing` -- per diode, the part of its field of view that the body,
   the ramps and the neighbouring mounts shadow (traced with the full satellite mesh)
   against its own well alone.
@@ -41,6 +43,7 @@ import numpy as np
 import trimesh
 
 from scenes.config import LAYOUT_DEFAULTS, ConfigError, SatelliteConfig, expand_layout, list_configs
+from scenes.materials import check_material
 from scenes.meshes import build_satellite_mesh, mount_meshes
 from simcore.constants import BPW34_AREA_M2
 from simcore.environment.eclipse import sunlit
@@ -50,7 +53,6 @@ from simcore.plots import plot_sweep
 from simcore.radiometry.analytic import BodyBox, diode_irradiance
 from simcore.radiometry.response import Eq415Response
 from simcore.render.irradiance import DiodeSurfaces, Renderer
-from simcore.render.walls import TabulatedResponse, WallMaterial, trace_well
 from simcore.sensor.chain import DIODES
 from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture
 from simcore.shapes.occlusion import direct_visibility
@@ -79,16 +81,19 @@ def healpix_directions(nside=16):
 
 # ----------------------------------------------------------------------------- traced black well
 
-def well_config(aperture):
+def well_config(aperture, material="black"):
     """Return a one-diode :class:`scenes.config.SatelliteConfig` holding ``aperture`` flat on the +z panel
-    (its diode frame is the body frame: u = x, v = y, n = z). The diode must be the square BPW34."""
+    (its diode frame is the body frame: u = x, v = y, n = z), its mount (floor plate and well walls) of
+    ``material`` (a :mod:`scenes.materials` name or a Mitsuba BSDF dict). The diode must be the square BPW34."""
     side = float(np.sqrt(BPW34_AREA_M2))
     if not (np.isclose(aperture.diode_x_m, side) and np.isclose(aperture.diode_y_m, side)):
         raise ValueError("the traced well uses the configuration format, whose diode is the square BPW34 "
                          f"({side / MM:.3f} mm); got {aperture.diode_x_m / MM:.3f} x {aperture.diode_y_m / MM:.3f} mm. "
-                         "Use simcore.render.walls.trace_well for other diodes")
+                         "Give a WellAperture over the BPW34 (WellAperture.design or the configuration's apertures)")
     well = {"height_mm": aperture.height_m / MM, "opening_mm": [aperture.opening_x_m / MM, aperture.opening_y_m / MM]}
-    return SatelliteConfig.from_dict({"name": "single_well", "diode": [
+    if aperture.chamfer_m > 0:
+        well.update(chamfer_mm=aperture.chamfer_m / MM, chamfer_deg=aperture.chamfer_deg)
+    return SatelliteConfig.from_dict({"name": "single_well", "mount": {"material": material}, "diode": [
         {"name": "well", "panel": "+z", "normal": [0.0, 0.0, 1.0], "at_mm": [0.0, 0.0], "well": well}]})
 
 
@@ -110,6 +115,181 @@ def traced_black_response(aperture, d_diode, *, samples=4096, seed=0, control_va
     sun_body = d @ cfg.frames[0]
     res = r.render(sun_body, None, direct_samples=int(samples), albedo=False, seed=int(seed))
     return res.direct_w_m2[:, 0], res.direct_se_w_m2[:, 0]
+
+
+# ----------------------------------------------------------------------------- walls that reflect (path tracer)
+
+# The wall materials of the study (Mitsuba BSDF dicts, scenes.materials): anodised / painted matte black
+# (Lambertian 4 %: black anodise, Aeroglaze Z306 reflect 2-5 %) and bare machined aluminium (GGX rough
+# conductor with Mitsuba's tabulated optical constants of Al, roughness 0.2). Any name of
+# scenes.materials.MATERIALS or any other Mitsuba BSDF dict works too.
+MATTE_BLACK = {"type": "diffuse", "reflectance": 0.04}
+BARE_AL = {"type": "roughconductor", "material": "Al", "alpha": 0.2, "distribution": "ggx"}
+WALL_MATERIALS = {"matte black 0.04": MATTE_BLACK, "bare Al alpha 0.2": BARE_AL}
+_WALL_MAX_DEPTH = 64      # path vertices: the shallow well returns few paths after a handful (Russian roulette)
+
+
+def material_label(spec):
+    """Return a short name of a wall material: the name itself, or the dict's type and parameters."""
+    if isinstance(spec, str):
+        return spec
+    words = [str(spec.get("type", "?"))]
+    for k, v in spec.items():
+        if k == "type":
+            continue
+        if isinstance(v, dict) and set(v) == {"type", "value"}:
+            v = v["value"]
+        words.append(f"{k} {v:g}" if isinstance(v, (int, float)) else f"{k} {v}")
+    return " ".join(words)
+
+
+def _named_materials(materials):
+    """Return [(label, spec)] of a mapping {label: spec} or a sequence of specs (checked)."""
+    items = list(materials.items()) if isinstance(materials, dict) else [(material_label(m), m) for m in materials]
+    return [(label, check_material(spec, f"wall material {label!r}")) for label, spec in items]
+
+
+def _unit_directions(d_diode):
+    d = np.atleast_2d(np.asarray(d_diode, dtype=float))
+    if d.ndim != 2 or d.shape[1] != 3:
+        raise ValueError(f"directions must have shape (M, 3) in the diode frame (u, v, n), got {np.shape(d_diode)}")
+    if not np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-6):
+        raise ValueError("directions must be unit vectors (diode frame u, v, n, pointing towards the source)")
+    return d
+
+
+@dataclass
+class WallResponse:
+    """A diode's response in its well with reflecting walls, per direction (M,), in response units
+    (irradiance on the diode per unit irradiance normal to the Sun's rays: a bare diode facing the Sun
+    reads 1), traced by the renderer's path tracer.
+
+    ``response`` = ``direct`` (the light that reaches the diode straight through the opening: exactly the
+    overlap model, ``WellAperture.response``, through the renderer's aperture split) + ``reflected`` (after
+    one or more reflections on the walls and the floor plate around the diode); ``*_se``: one standard error.
+    """
+
+    d_diode: np.ndarray
+    response: np.ndarray
+    response_se: np.ndarray
+    direct: np.ndarray
+    direct_se: np.ndarray
+    reflected: np.ndarray
+    reflected_se: np.ndarray
+    material: object
+    floor_material: object
+    samples: int
+    seed: int
+
+
+def well_renderer(aperture, material, floor_material=None, *, variant=None, max_depth=_WALL_MAX_DEPTH):
+    """Return a :class:`simcore.render.irradiance.Renderer` (E_sun = 1, point Sun for the direct part) of the
+    diode of :func:`well_config` with its floor plate and well walls as meshes (:func:`scenes.meshes.mount_meshes`):
+    the walls of ``material`` and the floor of ``floor_material`` (None: the walls' material: one part)."""
+    cfg = well_config(aperture, material)
+    floor = material if floor_material is None else check_material(floor_material, "floor material")
+    parts = mount_meshes(cfg, 0)
+    # the plug (scenes.meshes): the diode absorbs what comes back onto it
+    names = [k for k in ("floor", "well", "plug") if k in parts]
+    mesh = trimesh.util.concatenate([parts[k] for k in names])
+    ranges, start = {}, 0
+    for k in names:
+        ranges[k] = (start, start + len(parts[k].faces))
+        start = ranges[k][1]
+    mesh.metadata["parts"] = ranges
+    mesh.metadata["materials"] = {"floor": floor, "well": cfg.mount.material, "plug": parts["plug"].metadata["material"]}
+    return Renderer(DiodeSurfaces.from_config(cfg), mesh, e_sun_w_m2=1.0, variant=variant, max_depth=max_depth)
+
+
+def wall_response(aperture, d_diode, material, *, samples=16384, seed=0, floor_material=None, variant=None,
+                  renderer=None):
+    """Return a :class:`WallResponse`: the response of the BPW34 in ``aperture`` (a WellAperture) whose walls and
+    floor plate are of ``material`` (a :mod:`scenes.materials` name or a Mitsuba BSDF dict, e.g.
+    ``{"type": "diffuse", "reflectance": 0.04}``) to the Sun along unit directions ``d_diode`` (M, 3) (diode
+    frame u, v, n, towards the Sun): (direct + reflected) / E_sun, path traced by
+    :class:`simcore.render.irradiance.Renderer` with ``samples`` reflected paths per direction (4 m^2) and
+    ``seed``. Directions behind the diode (d_n <= 0) read 0 at no cost. ``floor_material``: the floor
+    plate's own material (None: the walls'). ``renderer``: one from :func:`well_renderer` to reuse.
+    """
+    d = _unit_directions(d_diode)
+    check_material(material, "wall material")
+    r = well_renderer(aperture, material, floor_material, variant=variant) if renderer is None else renderer
+    m = len(d)
+    out = {k: np.zeros(m) for k in ("direct", "direct_se", "reflected", "reflected_se")}
+    front = d[:, 2] > 0
+    if front.any():
+        res = r.render(d[front] @ r.diodes.frames[0], None, direct_samples=1024, albedo=False, seed=int(seed),
+                       reflected_samples=int(samples))
+        out["direct"][front], out["direct_se"][front] = res.direct_w_m2[:, 0], res.direct_se_w_m2[:, 0]
+        out["reflected"][front], out["reflected_se"][front] = res.reflected_w_m2[:, 0], res.reflected_se_w_m2[:, 0]
+    return WallResponse(d, out["direct"] + out["reflected"], np.hypot(out["direct_se"], out["reflected_se"]),
+                        out["direct"], out["direct_se"], out["reflected"], out["reflected_se"], material,
+                        material if floor_material is None else floor_material, int(samples), int(seed))
+
+
+def octant_grid(theta_step_deg=2.0, phi_step_deg=7.5):
+    """Return (theta_deg (T,), phi_deg (P,)) of a grid over one octant of a square well's symmetry:
+    theta 0..90 deg from the normal, phi 0..45 deg from the u axis."""
+    th = np.linspace(0.0, 90.0, int(round(90.0 / theta_step_deg)) + 1)
+    ph = np.linspace(0.0, 45.0, int(round(45.0 / phi_step_deg)) + 1)
+    return th, ph
+
+
+@dataclass(frozen=True)
+class TabulatedResponse:
+    """A well's response with reflecting walls: the exact overlap (``WellAperture.response``, the light
+    that reaches the diode straight) plus the path-traced reflected part (:func:`wall_response`), tabulated
+    on an octant grid (theta, phi) and interpolated bilinearly, folded by the square well's symmetry
+    (|u|, |v|, and u <-> v).
+
+    ``response(d_diode)`` works like every response (:mod:`simcore.radiometry.response`), so it can be used
+    with :func:`simcore.radiometry.analytic.diode_irradiance` (``backend='numpy'``).
+    """
+
+    aperture: WellAperture
+    theta_deg: np.ndarray
+    phi_deg: np.ndarray
+    reflected: np.ndarray        # (T, P)
+    reflected_se: np.ndarray     # (T, P)
+    material: object
+
+    @classmethod
+    def trace(cls, aperture, material, *, theta_step_deg=2.0, phi_step_deg=7.5, samples=4096, seed=0,
+              renderer=None):
+        """Return the table traced with :func:`wall_response` over :func:`octant_grid` (``samples`` per node)."""
+        if not np.isclose(aperture.opening_x_m, aperture.opening_y_m) or \
+                not np.isclose(aperture.diode_x_m, aperture.diode_y_m):
+            raise ValueError("TabulatedResponse folds directions by the symmetry of a SQUARE well over a square "
+                             "diode; this aperture is rectangular")
+        th, ph = octant_grid(theta_step_deg, phi_step_deg)
+        d = cut_directions(*(a.ravel() for a in np.meshgrid(th, ph, indexing="ij")))
+        w = wall_response(aperture, d, material, samples=samples, seed=seed, renderer=renderer)
+        shape = (len(th), len(ph))
+        return cls(aperture, th, ph, w.reflected.reshape(shape), w.reflected_se.reshape(shape), material)
+
+    def reflected_part(self, d_diode):
+        """Return the interpolated reflected part of the response for unit directions (..., 3)."""
+        d = np.asarray(d_diode, dtype=float)
+        u, v, n = np.abs(d[..., 0]), np.abs(d[..., 1]), d[..., 2]
+        lo, hi = np.minimum(u, v), np.maximum(u, v)
+        theta = np.degrees(np.arccos(np.clip(n, -1.0, 1.0)))
+        phi = np.degrees(np.arctan2(lo, hi))
+        ti = np.clip(np.interp(theta, self.theta_deg, np.arange(len(self.theta_deg))), 0, len(self.theta_deg) - 1)
+        pi_ = np.clip(np.interp(phi, self.phi_deg, np.arange(len(self.phi_deg))), 0, len(self.phi_deg) - 1)
+        t0 = np.minimum(np.floor(ti).astype(int), len(self.theta_deg) - 2)
+        p0 = np.minimum(np.floor(pi_).astype(int), len(self.phi_deg) - 2)
+        ft, fp = ti - t0, pi_ - p0
+        r = self.reflected
+        val = ((1 - ft) * (1 - fp) * r[t0, p0] + ft * (1 - fp) * r[t0 + 1, p0]
+               + (1 - ft) * fp * r[t0, p0 + 1] + ft * fp * r[t0 + 1, p0 + 1])
+        return np.where(n > 0, val, 0.0)
+
+    def response(self, d_diode):
+        """Return the response (overlap + reflected part) for unit directions (..., 3) in the diode frame."""
+        d = np.asarray(d_diode, dtype=float)
+        if d.shape[-1:] != (3,):
+            raise ValueError(f"directions must have shape (..., 3) in the diode frame (u, v, n), got {d.shape}")
+        return self.aperture.response(d) + self.reflected_part(d)
 
 
 # ----------------------------------------------------------------------------- response figures
@@ -164,18 +344,21 @@ class CutStudy:
 
 
 def angular_cuts(aperture, *, fov_deg=None, theta_deg=None, phi_deg=(0.0, 45.0), materials=(), samples=4096,
-                 rays=50_000, seed=0, levels=DEFAULT_LEVELS):
+                 wall_samples=16384, seed=0, levels=DEFAULT_LEVELS):
     """Return a :class:`CutStudy`: response cuts of ``aperture`` along azimuths ``phi_deg`` (``theta_deg``
     increasing, from 0; the 50 % / 1 % angles of every curve are interpolated on that same grid, so
     use a fine grid near the cut-off) with the
     traced black well (renderer), the analytic overlap, eq. 4.15 (``fov_deg``, default: the angle up to
-    which the diode is fully lit along the wall axes), cos theta, and the well traced with each
-    :class:`simcore.render.walls.WallMaterial` in ``materials`` (``rays`` paths per direction; the overlap plus
-    the traced reflections, ``WellTrace.response_cv``). Curve names: 'traced black', 'overlap',
-    'eq. 4.15', 'cos' and each material's label."""
+    which the diode is fully lit along the wall axes), cos theta, and the well with walls of each material in
+    ``materials`` (a mapping {label: material} or a sequence of materials: :mod:`scenes.materials` names or
+    Mitsuba BSDF dicts; :func:`wall_response` with ``wall_samples`` paths per direction: the exact overlap
+    plus the path-traced reflections). Curve names: 'traced black', 'overlap', 'eq. 4.15', 'cos' and each
+    material's label."""
     th = np.arange(0.0, 90.0, 2.5) if theta_deg is None else np.asarray(theta_deg, dtype=float)
     if fov_deg is None:
         fov_deg = float(np.degrees(np.arctan2((aperture.opening_x_m - aperture.diode_x_m) / 2, aperture.height_m)))
+    named = _named_materials(materials)
+    renderers = {label: well_renderer(aperture, spec) for label, spec in named}
     eq = Eq415Response(fov_deg)
     curves, errs, angles = {}, {}, []
     for phi in phi_deg:
@@ -186,18 +369,15 @@ def angular_cuts(aperture, *, fov_deg=None, theta_deg=None, phi_deg=(0.0, 45.0),
         c["overlap"] = aperture.response(d)
         c["eq. 4.15"] = eq.response(d)
         c["cos"] = np.clip(d[:, 2], 0, None)
-        for mat in materials:
-            tr = trace_well(aperture, d, mat, rays=rays, seed=seed)
-            name = mat.label
-            c[name], e[name] = tr.response_cv, tr.response_cv_se
+        for label, spec in named:
+            w = wall_response(aperture, d, spec, samples=wall_samples, seed=seed, renderer=renderers[label])
+            c[label], e[label] = w.response, w.response_se
         for name, y in c.items():
             a = response_angles(th, y, levels)
             for lev in levels:
                 angles.append({"phi_deg": float(phi), "model": name, "level": lev, "angle_deg": a[lev]})
         curves[float(phi)], errs[float(phi)] = c, e
     return CutStudy(aperture, float(fov_deg), th, curves, errs, angles)
-
-
 
 
 @dataclass
@@ -220,9 +400,9 @@ class ResponseMap:
         return np.where(self.traced_se > 0, diff / np.where(self.traced_se > 0, self.traced_se, 1.0), 0.0)
 
 
-def response_map(aperture, *, nside=16, fov_deg=None, material=None, samples=1024, rays=20_000, seed=0):
+def response_map(aperture, *, nside=16, fov_deg=None, material=None, samples=1024, wall_samples=4096, seed=0):
     """Return a :class:`ResponseMap` over the whole sphere (HEALPix ``nside``): black walls traced by the
-    renderer (``material`` None) or the well traced with a :class:`simcore.render.walls.WallMaterial`."""
+    renderer (``material`` None) or the well with walls of ``material`` (:func:`wall_response`)."""
     d = healpix_directions(nside)
     front = d[:, 2] > 0
     tr, se = np.zeros(len(d)), np.zeros(len(d))
@@ -230,14 +410,12 @@ def response_map(aperture, *, nside=16, fov_deg=None, material=None, samples=102
         tr[front], se[front] = traced_black_response(aperture, d[front], samples=samples, seed=seed)
         label = "traced, black walls"
     else:
-        t = trace_well(aperture, d[front], material, rays=rays, seed=seed)
-        tr[front], se[front] = t.response, t.response_se
-        label = f"traced, {material.label}"
+        w = wall_response(aperture, d[front], material, samples=wall_samples, seed=seed)
+        tr[front], se[front] = w.response, w.response_se
+        label = f"traced, {material_label(material)}"
     if fov_deg is None:
         fov_deg = float(np.degrees(np.arctan2((aperture.opening_x_m - aperture.diode_x_m) / 2, aperture.height_m)))
     return ResponseMap(int(nside), d, tr, se, aperture.response(d), Eq415Response(fov_deg).response(d), label)
-
-
 
 
 # ----------------------------------------------------------------------------- design
@@ -309,18 +487,25 @@ def design_aperture(fov_deg, *, cutoff_deg=EQ415_CUTOFF_DEG, diode_area_m2=BPW34
 
 
 def wall_albedo_effect(config, materials, *, geometry=None, step_s=20.0, dead=(0,), theta_step_deg=3.0,
-                       phi_step_deg=9.0, rays=10_000, seed=0, tables=None):
-    """Return rows {material, albedo_mean_w_m2, albedo_ratio, direct_mean_w_m2, direct_ratio,
-    response_60/75/83deg} comparing, over the sunlit part of one orbit (live diodes of ``config``), the
-    Earth albedo and direct Sun picked up with reflecting walls (:class:`simcore.render.walls.TabulatedResponse`
-    per material) against black walls (the overlap model). Both use the numpy backend of
-    :func:`simcore.radiometry.analytic.diode_irradiance` with the body box for the albedo; the direct Sun without the
-    box (its exact box clipping needs the overlap model). ``tables``: optional {label: TabulatedResponse}
-    (reused instead of tracing)."""
+                       phi_step_deg=9.0, samples=4096, seed=0, batches=8):
+    """Return (rows, tables): rows {material, albedo_mean_w_m2, albedo_ratio, direct_mean_w_m2, direct_ratio,
+    response_60/75/83/86deg_axis, and each one's ``_se``} comparing, over the sunlit part of one orbit (live
+    diodes of ``config``), the Earth albedo and direct Sun picked up with reflecting walls against black walls
+    (the overlap model); tables {label: :class:`TabulatedResponse`}. ``materials``: a mapping {label: material}
+    or a sequence of materials (:mod:`scenes.materials` names or Mitsuba BSDF dicts).
+
+    Both use the numpy backend of :func:`simcore.radiometry.analytic.diode_irradiance` with the body box for
+    the albedo; the direct Sun without the box (its exact box clipping needs the overlap model). Each material's
+    table is traced in ``batches`` independent parts (seeds ``seed * batches + b``, ``samples`` paths per node
+    each): every row value is linear in the table, so the value is the mean over the parts (that of the pooled
+    table) and its standard error their standard deviation / sqrt(batches)."""
     cfg = _as_config(config)
     aps = cfg.apertures
     if len({(a.opening_x_m, a.height_m) for a in aps}) != 1:
         raise ValueError("wall_albedo_effect tabulates one well; this configuration mixes wells")
+    if int(batches) < 2:
+        raise ValueError(f"batches must be >= 2 (their spread gives the standard errors), got {batches}")
+    named = _named_materials(materials)
     ap = aps[0]
     g = one_orbit_geometry(step_s=step_s) if geometry is None else geometry
     lit = sunlit(g.illumination)
@@ -329,29 +514,38 @@ def wall_albedo_effect(config, materials, *, geometry=None, step_s=20.0, dead=(0
     body = BodyBox.from_config(cfg)
     args = (g.r_sat_ecef_m[lit], g.r_sun_ecef_m[lit], g.R_ecef_from_body[lit], cfg.frames)
 
-    def irr(resp):
-        return diode_irradiance(*args, [resp] * cfg.n_diodes, backend="numpy", body=body, direct=False), \
-            diode_irradiance(*args, [resp] * cfg.n_diodes, backend="numpy", albedo=False)
-
-    alb0, dir0 = irr(ap)
-    a0 = float(alb0.albedo_w_m2[:, live].mean())
-    d0 = float(dir0.direct_w_m2[:, live].mean())
-    rows = [{"material": "black (overlap model)", "albedo_mean_w_m2": a0, "albedo_ratio": 1.0,
-             "direct_mean_w_m2": d0, "direct_ratio": 1.0}]
-    tables = {} if tables is None else dict(tables)
-    for mat in materials:
-        tab = tables.get(mat.label) or TabulatedResponse.trace(ap, mat, theta_step_deg=theta_step_deg,
-                                                              phi_step_deg=phi_step_deg, rays=rays, seed=seed)
-        tables[mat.label] = tab
-        alb, dr_ = irr(tab)
-        a = float(alb.albedo_w_m2[:, live].mean())
-        d = float(dr_.direct_w_m2[:, live].mean())
-        rows.append({"material": mat.label, "albedo_mean_w_m2": a, "albedo_ratio": a / a0,
-                     "direct_mean_w_m2": d, "direct_ratio": d / d0})
-    for row in rows:
-        resp = ap if row["material"].startswith("black (overlap") else tables[row["material"]]
+    def values(resp):
+        alb = diode_irradiance(*args, [resp] * cfg.n_diodes, backend="numpy", body=body, direct=False)
+        dr_ = diode_irradiance(*args, [resp] * cfg.n_diodes, backend="numpy", albedo=False)
+        v = {"albedo_mean_w_m2": float(alb.albedo_w_m2[:, live].mean()),
+             "direct_mean_w_m2": float(dr_.direct_w_m2[:, live].mean())}
         for t in (60, 75, 83, 86):
-            row[f"response_{t}deg_axis"] = float(resp.response(cut_directions([t], 0.0))[0])
+            v[f"response_{t}deg_axis"] = float(resp.response(cut_directions([t], 0.0))[0])
+        return v
+
+    black = values(ap)
+    a0, d0 = black["albedo_mean_w_m2"], black["direct_mean_w_m2"]
+    rows = [{"material": "black (overlap model)", **black, "albedo_ratio": 1.0, "direct_ratio": 1.0}]
+    tables = {}
+    for label, spec in named:
+        r = well_renderer(ap, spec)
+        parts, runs = [], []
+        for b in range(int(batches)):
+            tab = TabulatedResponse.trace(ap, spec, theta_step_deg=theta_step_deg, phi_step_deg=phi_step_deg,
+                                          samples=samples, seed=int(seed) * int(batches) + b, renderer=r)
+            parts.append(tab)
+            v = values(tab)
+            v["albedo_ratio"], v["direct_ratio"] = v["albedo_mean_w_m2"] / a0, v["direct_mean_w_m2"] / d0
+            runs.append(v)
+        n = len(parts)
+        tables[label] = TabulatedResponse(ap, parts[0].theta_deg, parts[0].phi_deg,
+                                          np.mean([t.reflected for t in parts], axis=0),
+                                          np.sqrt(np.sum([t.reflected_se ** 2 for t in parts], axis=0)) / n, spec)
+        row = {"material": label}
+        for k in runs[0]:
+            x = np.array([v[k] for v in runs])
+            row[k], row[k + "_se"] = float(x.mean()), float(x.std(ddof=1) / np.sqrt(n))
+        rows.append(row)
     return rows, tables
 
 
@@ -566,31 +760,20 @@ def run_aperture_sweep(out_dir, heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.
 
 # ----------------------------------------------------------------------------- wall reflectance series
 
-def reflectance_series(aperture, rhos=(0.0, 0.05, 0.2, 0.5, 0.9), *, theta_deg=None, phi_deg=0.0, rays=20_000,
+def reflectance_series(aperture, rhos=(0.0, 0.05, 0.2, 0.5, 0.9), *, theta_deg=None, phi_deg=0.0, samples=4096,
                        seed=0, levels=DEFAULT_LEVELS):
-    """Return {'theta_deg', 'rho', 'response' (R, M), 'response_se' (R, M), 'angles' rows}: the response
-    cut along ``phi_deg`` (overlap + traced reflections, ``WellTrace.response_cv``) with Lambertian walls
-    of each reflectance in ``rhos`` (same seed: common random
-    numbers, so the curves differ by the walls alone; no Russian roulette, so each path's contribution is
-    non-decreasing in rho)."""
+    """Return {'theta_deg', 'rho', 'response' (R, M), 'response_se' (R, M), 'angles' rows, 'overlap'}: the
+    response cut along ``phi_deg`` (:func:`wall_response`: the exact overlap plus the path-traced reflections,
+    ``samples`` paths per direction) with Lambertian walls and floor plate of each reflectance in ``rhos``
+    (the same seed for each)."""
     th = np.arange(0.0, 90.0, 2.0) if theta_deg is None else np.asarray(theta_deg, dtype=float)
     d = cut_directions(th, phi_deg)
     resp, se, angles = [], [], []
     for rho in rhos:
-        tr = trace_well(aperture, d, WallMaterial.diffuse(rho), rays=rays, seed=seed, rr_depth=10_000)
-        resp.append(tr.response_cv)
-        se.append(tr.response_cv_se)
-        for lev, ang in response_angles(th, tr.response_cv, levels).items():
+        w = wall_response(aperture, d, {"type": "diffuse", "reflectance": float(rho)}, samples=samples, seed=seed)
+        resp.append(w.response)
+        se.append(w.response_se)
+        for lev, ang in response_angles(th, w.response, levels).items():
             angles.append({"rho": float(rho), "level": lev, "angle_deg": ang})
     return {"theta_deg": th, "phi_deg": float(phi_deg), "rho": np.asarray(rhos, float), "response": np.array(resp),
             "response_se": np.array(se), "angles": angles, "overlap": aperture.response(d)}
-
-
-
-
-
-
-
-
-
-

@@ -1,0 +1,226 @@
+"""Apertures as scene geometry (issue 14 item 2): the diode plug, slits, chamfered rims and round holes, each
+traced by the renderer against the closed-form overlap of the diode with the shifted opening(s)."""
+import numpy as np
+import pytest
+import trimesh
+
+from scenes.meshes import build_satellite_mesh
+from simcore.pipeline.run import PreparedRun, RunOptions
+from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.shapes.aperture import WellAperture
+from simcore.studies import aperture as A
+from walls_oracle_4277e88 import ORACLE
+
+AP75 = WellAperture.design(75.0)   # the well of tilt25_fov75 (FOV 75: opening 7.00 mm), the old tracer's cases
+
+
+def _without_plugs(mesh):
+    """Return the satellite mesh without its 'plug_k' parts (the mesh as it was before the plugs)."""
+    keep = [n for n in mesh.metadata["parts"] if not n.startswith("plug_")]
+    faces = np.concatenate([np.arange(*mesh.metadata["parts"][n]) for n in keep])
+    out = trimesh.Trimesh(mesh.vertices, mesh.faces[faces], process=False)
+    ranges, start = {}, 0
+    for n in keep:
+        a, b = mesh.metadata["parts"][n]
+        ranges[n], start = (start, start + b - a), start + b - a
+    out.metadata["parts"] = ranges
+    out.metadata["materials"] = {n: mesh.metadata["materials"][n] for n in keep}
+    return out
+
+
+# ----------------------------------------------------------------------------- step 0: the diode plug
+
+def test_plugs_are_black_and_change_no_all_black_render():
+    # The plugs sit 1 um under the diode surfaces (scenes.meshes.PLUG_DEPTH_M), below every path the renderer
+    # starts on a diode: with all parts black (no path tracer) nothing it traces can meet them, so the direct
+    # and albedo irradiance of a run's chunk must be bit-identical with and without them (same seeds).
+    study = PreparedRun(RunOptions(config="tilt20_fov70", start="2016-03-20T12:00:00", duration_s=60.0))
+    mesh = build_satellite_mesh(study.config)
+    plugs = [n for n in mesh.metadata["parts"] if n.startswith("plug_")]
+    assert len(plugs) == study.config.n_diodes and all(mesh.metadata["materials"][n] == "black" for n in plugs)
+    with_plugs = study.render_chunk(0, len(study.epochs))
+    study._renderer = Renderer(
+        DiodeSurfaces.from_config(study.config), _without_plugs(mesh), reflectivity=study.map.values_south_first,
+        lon_west_deg=float(study.map.lon_edges_deg[0]), e_sun_w_m2=study.opts.e_sun_w_m2,
+        sun_angular_radius_rad=study.sun_angular_radius_rad)
+    without = study.render_chunk(0, len(study.epochs))
+    lit = with_plugs["rendered"][..., :2]
+    assert (lit[..., 0] > 0).sum() > 100 and (lit[..., 1] > 0).sum() > 100
+    for key in ("rendered", "rendered_se", "samples", "direct_plain"):
+        np.testing.assert_array_equal(with_plugs[key], without[key], err_msg=key)
+
+
+def test_the_satellite_mesh_reproduces_the_old_wall_tracer_thanks_to_its_plug():
+    # Oracle: the retired wall tracer's numbers (tests/walls_oracle_4277e88.py, simcore/render/walls.py at
+    # 4277e88), which end every path that reaches the diode. The satellite mesh (body, ramp, floor, well, plug)
+    # of the one-diode configuration, traced as `sunsim run` traces it, must agree on average: the mean of the
+    # n = 80 z-scores within 4 / sqrt(n) (false-alarm rate 6e-5 per case). Without the plug, reflected paths
+    # returning onto the diode fall through the floor's hole and come back off its sides: the response reads
+    # 0.2-0.7 % high and the mean z lies beyond that bound in both cases (measured +0.58 and +0.88 with these
+    # seeds).
+    for case, material in [("series rho 0.9", {"type": "diffuse", "reflectance": 0.9}),
+                           ("cut bare Al (alpha 0.2) phi 0", A.BARE_AL)]:
+        c = ORACLE[case]
+        assert c["reflective_floor"]                        # the record's floor plate reflects, as the mount's
+        cfg = A.well_config(AP75, material)
+        d = A.cut_directions(c["theta_deg"], c["phi_deg"])
+        mesh = build_satellite_mesh(cfg)
+        for m, plugged in [(mesh, True), (_without_plugs(mesh), False)]:
+            r = Renderer(DiodeSurfaces.from_config(cfg), m, e_sun_w_m2=1.0, max_depth=64)
+            res = r.render(d @ r.diodes.frames[0], None, direct_samples=1024, albedo=False, seed=13,
+                           reflected_samples=65536)
+            resp = res.direct_w_m2[:, 0] + res.reflected_w_m2[:, 0]
+            se = np.hypot(np.hypot(res.direct_se_w_m2[:, 0], res.reflected_se_w_m2[:, 0]), c["response_se"])
+            z = ((resp - np.asarray(c["response"])) / se)[se > 0]
+            assert z.size == 80
+            assert (abs(z.mean()) < 4.0 / np.sqrt(z.size)) == plugged, (case, plugged, z.mean())
+
+
+# ----------------------------------------------------------------------------- step 1: chamfered rims and slits
+
+# A hand-made chamfered well (mm): a 2 x 2 diode under a 3 x 3 opening, 1 high, its top 0.5 bevelled outward.
+# Lower rim: half opening 1.5 at z = 0.5; top rim: half opening w' = 1.5 + 0.5 tan(alpha) at z = 1.
+MM = 1e-3
+
+
+def _hand_well(alpha_deg):
+    return WellAperture(2 * MM, 2 * MM, 3 * MM, 3 * MM, 1 * MM, 0.5 * MM, alpha_deg)
+
+
+def _along(tan_u, tan_v=0.0):
+    """Return the unit direction (1, 3) with d_u / d_n = tan_u and d_v / d_n = tan_v."""
+    d = np.array([[tan_u, tan_v, 1.0]])
+    return d / np.linalg.norm(d)
+
+
+# (alpha, tan(theta) along u, along v, lit fraction), worked by hand: the lit x-range of the diode [-1, 1] is
+# [max(-1, -1.5 - 0.5 t, -w' - t), min(1, 1.5 - 0.5 t, w' - t)], and alike in y.
+CHAMFER_CASES = [
+    (45.0, 0.5, 0.0, 1.0),      # w' = 2: hi = min(1, 1.25, 1.5) = 1, fully lit
+    (45.0, 1.5, 0.0, 0.75),     # hi = min(1, 0.75, 0.5) = 0.5, the top rim binds: (0.5 + 1) / 2
+    (45.0, 2.0, 0.0, 0.5),      # hi = min(1, 0.5, 0) = 0
+    (45.0, 3.0, 0.0, 0.0),      # hi = min(1, 0, -1) = -1 = lo: dark
+    (45.0, 1.5, 1.5, 0.5625),   # 0.75 along both axes
+    (45.0, -1.5, 0.0, 0.75),    # the mirror image
+    (80.0, 2.0, 0.0, 0.75),     # w' = 1.5 + 0.5 x 5.6713 = 4.3356: hi = min(1, 0.5, 2.3356) = 0.5, the lower rim
+    (80.0, 4.0, 0.0, 0.25),     # hi = min(1, -0.5, 0.3356) = -0.5, the lower rim: (-0.5 + 1) / 2
+    (0.0, 1.5, 0.0, 0.5),       # no bevel: straight walls 1 high, hi = min(1, 0.75, 1.5 - 1.5) = 0
+]
+
+
+class _NumpyOps:
+    maximum, minimum, where, tiny = np.maximum, np.minimum, np.where, 1e-300
+
+
+@pytest.mark.parametrize("alpha, tu, tv, expected", CHAMFER_CASES)
+def test_chamfered_well_lit_fraction_hand_cases(alpha, tu, tv, expected):
+    from simcore.radiometry import response as R
+    from simcore.shapes.occlusion import lit_fraction_with_box
+    ap = _hand_well(alpha)
+    d = _along(tu, tv)
+    assert ap.lit_fraction(d)[0] == pytest.approx(expected, abs=1e-12)
+    # the analytic albedo sum's kernel form (lit fraction x cos) and the direct reference's body clipping (the
+    # box 1 m below the diode: no shadow) share the two-rim geometry
+    assert R.kernel(ap)(d[:, 0], d[:, 1], d[:, 2], _NumpyOps)[0] == pytest.approx(expected * d[0, 2], abs=1e-12)
+    assert lit_fraction_with_box(ap, np.eye(3), [0.0, 0.0, 1.0], d[0], [MM, MM, MM]) == pytest.approx(expected,
+                                                                                                       abs=1e-12)
+
+
+def test_chamfered_well_body_clipping_matches_point_casting():
+    # Oracle: a 400 x 400 grid of points on the diode, each lit when its ray passes inside both rims and misses
+    # the box (slab test): the clipped area to the grid's resolution (a cell row along each edge: 4 / 400).
+    from simcore.shapes.occlusion import lit_fraction_with_box
+    ap = _hand_well(45.0)
+    half_box = np.array([5.0, 5.0, 5.0]) * MM
+    pos = np.array([0.0, 7.0 * MM, 3.5 * MM])     # the diode 2 mm beside the box's +y face, facing +z
+    n_grid = 400
+    g = ((np.arange(n_grid) + 0.5) / n_grid - 0.5) * 2 * MM
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    for tu, tv in [(1.2, -1.0), (0.3, -1.5), (-1.0, -0.8)]:
+        d = _along(tu, tv)[0]
+        inside = np.ones(X.shape, bool)
+        for half, z in [(1.5 * MM, 0.5 * MM), (2.0 * MM, 1.0 * MM)]:
+            inside &= (np.abs(X + z * d[0] / d[2]) <= half) & (np.abs(Y + z * d[1] / d[2]) <= half)
+        o = pos + np.stack([X, Y, np.zeros_like(X)], -1)
+        with np.errstate(divide="ignore"):
+            t1, t2 = (-half_box - o) / d, (half_box - o) / d
+        hit = np.maximum(t1, t2).min(-1) >= np.maximum(np.minimum(t1, t2).max(-1), 0.0)
+        expected = np.mean(inside & ~hit)
+        got = lit_fraction_with_box(ap, np.eye(3), pos, d, half_box)
+        assert 0.02 < got < ap.lit_fraction(d[None])[0] - 0.02, (tu, tv)      # the box shades part of it
+        assert got == pytest.approx(expected, abs=4.0 / n_grid)
+
+
+AP70 = WellAperture.design(70.0)     # FOV 70: opening 5.28 mm, height 0.48 mm (scenes/FORMAT.md)
+# its top 0.3 mm bevelled at 45 deg: the top rim 5.88 mm wide (0.3 mm into each 0.5 mm wall)
+CHAMFER70 = WellAperture(AP70.diode_x_m, AP70.diode_y_m, AP70.opening_x_m, AP70.opening_y_m, AP70.height_m,
+                         0.3 * MM, 45.0)
+
+
+def _grid(thetas, phis):
+    t, p = np.meshgrid(thetas, phis, indexing="ij")
+    return A.cut_directions(t.ravel(), p.ravel())
+
+
+def _z(resp, exact, se):
+    partial = se > 0
+    return np.abs(resp - exact)[partial] / se[partial], partial
+
+
+def test_traced_chamfered_well_is_the_two_rim_overlap():
+    # Oracle: the closed-form two-rim overlap (hand-checked above); the renderer traces the bevelled wall mesh of
+    # scenes.meshes through a configuration (well = {..., chamfer_mm = 0.3, chamfer_deg = 45}), sampling the whole
+    # diode (no aperture hint). Each partly lit direction within 3 SE (two-sided false-alarm rate 0.27 % each; with
+    # the fixed seed the outcome is reproducible).
+    d = _grid(np.arange(66.0, 90.0, 1.5), [0.0, 30.0, 45.0])
+    resp, se = A.traced_black_response(CHAMFER70, d, samples=16384, seed=4)
+    exact = CHAMFER70.response(d)
+    z, partial = _z(resp, exact, se)
+    assert partial.sum() >= 15 and np.all(z < 3.0), z
+    assert np.allclose(resp[~partial], exact[~partial], atol=2e-6)
+    # the bevel lets in more light than the straight well at these angles: the test can tell them apart
+    assert np.max(np.abs(CHAMFER70.response(d) - AP70.response(d))) > 0.02
+    # negative: the closed form of a bevel at 30 deg (top rim 5.63 mm) is far from what the 45 deg mesh reads
+    wrong = WellAperture(*[getattr(CHAMFER70, f) for f in ("diode_x_m", "diode_y_m", "opening_x_m", "opening_y_m",
+                                                           "height_m", "chamfer_m")], 30.0)
+    assert np.max(_z(resp, wrong.response(d), se)[0]) > 5.0
+    # the renderer's aperture split (hint) uses the same two rims: no noise where the mesh is the analytic well
+    hinted, hinted_se = A.traced_black_response(CHAMFER70, d, samples=1024, seed=4, control_variate=True)
+    assert np.allclose(hinted, exact, atol=2e-6) and np.all(hinted_se == 0.0)
+
+
+def test_traced_slit_is_the_rectangle_overlap():
+    # A slit: a rectangular well of unequal sides (3.0 x 8.0 mm, 1.0 mm high over the 2.65 mm BPW34). Oracle:
+    # WellAperture.response (closed form), traced through the configuration and its meshes, within 3 SE.
+    slit = A.well_config(WellAperture(AP70.diode_x_m, AP70.diode_y_m, 3.0 * MM, 8.0 * MM, 1.0 * MM)).diodes[0].aperture
+    assert (slit.opening_x_m, slit.opening_y_m) == (3.0 * MM, 8.0 * MM)
+    d = _grid([10.0, 25.0, 40.0, 55.0, 70.0], [0.0, 45.0, 90.0])
+    resp, se = A.traced_black_response(slit, d, samples=16384, seed=6)
+    exact = slit.response(d)
+    z, partial = _z(resp, exact, se)
+    assert partial.sum() >= 8 and np.all(z < 3.0), z
+    assert np.allclose(resp[~partial], exact[~partial], atol=2e-6)
+    # across the slit (phi 0) it cuts off at atan((1.5 + 1.325) / 1) = 70.5 deg, along it (phi 90) it reaches
+    # atan((4 + 1.325) / 1) = 79.4 deg: at 70 deg the slit is dark or nearly so across and half lit along
+    th70 = np.isclose(np.degrees(np.arccos(d[:, 2])), 70.0)
+    assert exact[th70 & np.isclose(d[:, 1], 0.0)][0] < 0.01 < exact[th70 & np.isclose(d[:, 0], 0.0, atol=1e-9)][0]
+
+
+def test_chamfer_and_slit_configuration_keys():
+    from scenes.config import ConfigError, SatelliteConfig
+
+    def load(well, mount=None):
+        return SatelliteConfig.from_dict({"name": "t", "mount": mount or {}, "diode": [
+            {"name": "a", "panel": "+z", "normal": [0.0, 0.0, 1.0], "at_mm": [0.0, 0.0], "well": well}]})
+
+    ap = load({"height_mm": 0.6, "opening_mm": [5.0, 5.0], "chamfer_mm": 0.3, "chamfer_deg": 45}).diodes[0].aperture
+    assert (ap.chamfer_m, ap.chamfer_deg) == (0.3 * MM, 45.0)
+    assert ap.rims[5] == pytest.approx(2.5 * MM + 0.3 * MM) and ap.rims[4] == pytest.approx(0.3 * MM)
+    with pytest.raises(ConfigError, match="chamfer widens the opening by 0.520 mm.*wall_mm"):   # 0.3 tan 60
+        load({"height_mm": 0.6, "opening_mm": [5.0, 5.0], "chamfer_mm": 0.3, "chamfer_deg": 60})
+    with pytest.raises(ConfigError, match="did you mean 'chamfer_deg'"):
+        load({"height_mm": 0.6, "opening_mm": [5.0, 5.0], "chamfer_mm": 0.3, "chamfer_dg": 45})
+    with pytest.raises(ConfigError, match="chamfer"):
+        load({"height_mm": 0.6, "opening_mm": [5.0, 5.0], "chamfer_mm": 0.8, "chamfer_deg": 10})
+    with pytest.raises(ConfigError, match="at least as large as the diode"):           # a slit under 2.65 mm
+        load({"height_mm": 1.0, "opening_mm": [1.0, 6.0]})
