@@ -233,7 +233,8 @@ def describe(report):
                      f"share traced against the mesh, a deterministic quadrature)")
     if report.get("direct_unchecked"):
         lines.append(f"  direct: {report['direct_unchecked']} diode-epochs left out: a part the analytic model does "
-                     f"not know ([[part]]: panels, antennas, user meshes) may shade the Sun there")
+                     f"not know ([[part]]: panels, antennas, user meshes) may shade the Sun there, or the body box "
+                     f"a round well's diode (its shadow is clipped against rectangles only)")
     if report.get("reflected_unchecked"):
         lines.append(f"  reflected: {report['reflected_unchecked']} diode-epochs with light reflected by the "
                      f"spacecraft, not checked (the analytic model's surfaces are black; the path tracer's own "
