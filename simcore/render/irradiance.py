@@ -605,6 +605,8 @@ class Renderer:
         that lit part. Its mean over the diode is 0 for any ``d``, so the estimate stays unbiased whatever the
         mesh; the lane's traced 1 or 0 and this term cancel where the mesh is the analytic well."""
         dr, mi = self._dr, self._mi
+        if not (self.control_variate and self._plain.any()):
+            return 0.0                      # no round well: the kernels stay as they were
         mode = dr.gather(mi.UInt32, host_array(mi.UInt32, t["mode"]), task)
         g = lambda a: dr.gather(mi.Float, host_array(mi.Float, a), task)  # noqa: E731
         ax, ay = g(t["ap"][:, 0]), g(t["ap"][:, 1])                           # half diode sides, m
