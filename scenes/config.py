@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture, diode_frame
+from simcore.shapes.aperture import EQ415_CUTOFF_DEG, CircularWell, WellAperture, diode_frame
 from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
 from simcore.shapes.window import INDEX_RANGE, Window
@@ -47,7 +47,8 @@ DIODE_KEYS = ("name", "panel", "part", "normal", "az_deg", "el_deg", "at_mm", "f
 WINDOW_KEYS = ("index", "thickness_mm", "gap_mm", "size_mm", "absorption_per_mm")
 # A diode on a part sits on the part's surface: its at_mm may miss the surface by this much (CAD rounding)
 ON_SURFACE_TOLERANCE_M = 0.5e-3
-WELL_KEYS = ("height_mm", "opening_mm", "chamfer_mm", "chamfer_deg")
+WELL_KEYS = ("height_mm", "opening_mm", "chamfer_mm", "chamfer_deg", "shape", "diameter_mm")
+ROUND_WELL_KEYS = ("shape", "height_mm", "diameter_mm")
 WELL_REQUIRED = ("height_mm", "opening_mm")
 TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part")
 PART_KEYS = ("name", "file", "unit", "box_mm", "translate_mm", "rotate_deg", "hinge", "material")
@@ -337,7 +338,7 @@ class MountedDiode:
     normal_body: np.ndarray
     frame_body: np.ndarray
     position_body_m: np.ndarray
-    aperture: WellAperture
+    aperture: WellAperture  # or CircularWell (a round well)
     fov_deg: float
     panel: str        # None for a diode on a part
     at_m: np.ndarray  # (lateral, along) position of the mount's foot on the panel, metres; on a part: (x, y, z) in
@@ -377,12 +378,39 @@ def _place(frame, panel, at_m, aperture, body, mount):
     return foot + lift * p
 
 
+def _round_well(well, fov_deg, where):
+    """Return (CircularWell, fov_deg) for a diode's well = {shape = "round", diameter_mm, height_mm}."""
+    extra = sorted(set(well) - set(ROUND_WELL_KEYS))
+    if extra:
+        raise ConfigError(f"{where}: a round well takes {', '.join(ROUND_WELL_KEYS)}, not {', '.join(extra)}")
+    missing = [k for k in ROUND_WELL_KEYS if k not in well]
+    if missing:
+        raise ConfigError(f"{where}: the round well needs {', '.join(missing)} (mm)")
+    side = float(np.sqrt(BPW34_AREA_M2))
+    try:
+        aperture = CircularWell(side, side, float(well["diameter_mm"]) * MM / 2.0, float(well["height_mm"]) * MM)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where}: invalid round well {well!r}: {exc} (the BPW34's diagonal is "
+                          f"{side * np.sqrt(2.0) / MM:.2f} mm)") from None
+    # fully lit along a wall axis while the shifted circle still holds the diode's far corners
+    r, a = aperture.radius_m, side / 2.0
+    full = 90.0 if aperture.height_m == 0 else float(np.degrees(np.arctan2(np.sqrt(r * r - a * a) - a,
+                                                                           aperture.height_m)))
+    return aperture, (full if fov_deg is None else float(fov_deg))
+
+
 def _aperture_for(fov_deg, well, where):
     """Return (WellAperture, fov_deg) for a diode: designed from the FOV (eq. 4.15) or an explicit well."""
     if well is not None:
         if not isinstance(well, dict):
             raise ConfigError(f"{where}: 'well' must be a table {{height_mm = ..., opening_mm = [x, y]}}")
         _check_keys(well, WELL_KEYS, f"{where} well")
+        if well.get("shape", "square") == "round":
+            return _round_well(well, fov_deg, where)
+        if well.get("shape", "square") != "square" or "diameter_mm" in well:
+            raise ConfigError(f"{where}: a well's shape is \"square\" (the default: opening_mm = [x, y]) or \"round\" "
+                              f"(diameter_mm), got shape = {well.get('shape', 'square')!r}"
+                              + (" with diameter_mm" if "diameter_mm" in well else ""))
         missing = [k for k in WELL_REQUIRED if k not in well]
         if missing:
             raise ConfigError(f"{where}: the well needs {', '.join(missing)} (mm)")

@@ -16,7 +16,8 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
   the aperture's opening and its walls run along the diode frame's u and v axes
   (:func:`simcore.shapes.aperture.diode_frame`); a chamfered well's top ``chamfer_m``
   widens outward to the top rim (:attr:`simcore.shapes.aperture.WellAperture.rims`).
-  Absent for a bare diode (height 0).
+  A round well (:class:`simcore.shapes.aperture.CircularWell`) is a round tube, ``ROUND_SIDES``-gons
+  of the circles' areas, inner radius the rim's, on the square floor plate. Absent for a bare diode (height 0).
 - ``plug_k``: the diode's own absorbing body, a black block filling the floor's hole from
   ``PLUG_DEPTH_M`` under the diode surface down to the floor's underside. The renderer starts its paths
   on the diode surface, which is not in the mesh; light coming back onto the diode (reflected by walls,
@@ -40,6 +41,7 @@ import numpy as np
 import trimesh
 
 from scenes.config import SatelliteConfig, panel_axes
+from simcore.shapes.aperture import CircularWell
 
 # The plug's top under the diode surface: below the path tracer's 2 um spawn offset (paths leaving the diode
 # start above it), far above float32 resolution at the satellite's scale (~1e-8 m at 0.1 m).
@@ -84,6 +86,33 @@ def _ring_mesh(outer_half, inner_half, n0, n1, frame, centre, inner_levels=()):
     return trimesh.Trimesh(_to_body(verts, frame, centre), faces, process=True)
 
 
+# Sides of the polygon that stands for a round well's circle (scenes.config: well = {shape = "round", ...}). Its
+# vertices lie at ROUND_RADIUS_FACTOR x the radius, so that its area is the circle's; its edge then strays from
+# the circle by at most r (pi / N)^2 / 3 = 3.1e-6 r (7 nm for r = 2.2 mm, below float32 at the satellite's
+# scale), so the lit area differs from the closed-form disc overlap (simcore.shapes.aperture.CircularWell) by
+# under (the arc inside the diode, <= 2 pi r) x 3.1e-6 r: 1.3e-5 of a BPW34 for r = 2.2 mm.
+ROUND_SIDES = 1024
+ROUND_RADIUS_FACTOR = float(np.sqrt(2.0 * np.pi / (ROUND_SIDES * np.sin(2.0 * np.pi / ROUND_SIDES))))
+
+
+def _tube(r_in, r_out, n0, n1, sides=ROUND_SIDES):
+    """Return (vertices, faces) of a closed round tube (inner and outer walls: ``sides``-gons of area
+    pi r^2) spanning n0..n1 along n, in local (u, v, n) coordinates."""
+    ang = 2.0 * np.pi * np.arange(sides) / sides
+    ring = np.column_stack([np.cos(ang), np.sin(ang)]) * ROUND_RADIUS_FACTOR
+    verts = np.vstack([np.column_stack([ring * r, np.full(sides, n)]) for r, n in
+                       [(r_out, n0), (r_in, n0), (r_out, n1), (r_in, n1)]])
+    o0, i0, o1, i1 = 0, sides, 2 * sides, 3 * sides
+    a = np.arange(sides)
+    b = (a + 1) % sides
+    faces = np.vstack([np.column_stack(f) for f in [
+        (o0 + a, o0 + b, o1 + b), (o0 + a, o1 + b, o1 + a),         # outer wall, outward
+        (i0 + a, i1 + b, i0 + b), (i0 + a, i1 + a, i1 + b),         # inner wall, facing the hole
+        (o1 + a, o1 + b, i1 + b), (o1 + a, i1 + b, i1 + a),         # top ring, +n
+        (o0 + a, i0 + b, o0 + b), (o0 + a, i0 + a, i0 + b)]])       # bottom ring, -n
+    return verts, faces
+
+
 def body_mesh(config):
     """Return the body envelope box (body frame, m)."""
     return trimesh.creation.box(extents=np.asarray(config.body.size_m))
@@ -105,7 +134,10 @@ def mount_meshes(config, k):
         if ramp.volume > 1e-15:
             parts["ramp"] = ramp
     parts["floor"] = _ring_mesh(outer, [ap.diode_x_m / 2.0, ap.diode_y_m / 2.0], -m.floor_m, 0.0, frame, centre)
-    if ap.height_m > 0:
+    if ap.height_m > 0 and isinstance(ap, CircularWell):
+        verts, faces = _tube(ap.radius_m, ap.radius_m + m.wall_m, 0.0, ap.height_m)
+        parts["well"] = trimesh.Trimesh(_to_body(verts, frame, centre), faces, process=True)
+    elif ap.height_m > 0:
         _, _, wx, wy, h_low, tx, ty, h_top = ap.rims
         bevel = [(h_low, (wx, wy)), (h_top, (tx, ty))] if (tx, ty) != (wx, wy) and h_top > h_low else ()
         parts["well"] = _ring_mesh(outer, [wx, wy], 0.0, ap.height_m, frame, centre, bevel)

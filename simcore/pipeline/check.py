@@ -236,9 +236,10 @@ def describe(report):
                      f"share traced against the mesh, a deterministic quadrature)")
     if report.get("direct_unchecked"):
         win = report.get("direct_unchecked_window", 0)
-        parts = report["direct_unchecked"] - win if win else report["direct_unchecked"]
-        reasons = ([f"{parts} where a part the analytic model does not know ([[part]]: panels, antennas, user "
-                    f"meshes) may shade the Sun"] if parts > 0 else []) + \
+        other = report["direct_unchecked"] - win if win else report["direct_unchecked"]
+        reasons = ([f"{other} where a part the analytic model does not know ([[part]]: panels, antennas, user "
+                    f"meshes) may shade the Sun, or the body box a round well's diode (its shadow is clipped "
+                    f"against rectangles only)"] if other > 0 else []) + \
                   ([f"{win} where the body may shade a diode under a window (the light leaves the window shifted: "
                     f"no exact reference)"] if win else [])
         lines.append(f"  direct: {report['direct_unchecked']} diode-epochs left out: {'; '.join(reasons)}")

@@ -24,11 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from scenes.config import SatelliteConfig
+from scenes.config import SatelliteConfig, panel_axes
 from scenes.meshes import build_satellite_mesh
 from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
+from simcore.shapes.aperture import CircularWell
 from simcore.shapes.occlusion import box_hit
 from simcore.shapes.window import WindowedWell
 from simcore.render.irradiance import DiodeSurfaces, Renderer, occluder_scene, rays_blocked
@@ -247,6 +248,25 @@ class PreparedRun:
             out[e, k] = hit.reshape(e.size, 9 * 17).any(axis=1)
         return out
 
+    def round_well_shadow(self, sl):
+        """Return (n, K) bool: the diode-epochs of ``sl`` of round wells (``CircularWell``) whose direct Sun the
+        body box may shade: part of the solar disc at or below the plane of the diode's panel and part of it in
+        front of the diode. The analytic model clips the box's shadow against a rectangular lit part only
+        (simcore.shapes.occlusion), so the check leaves these out (counted, with the reason). Above the
+        panel's plane no ray from the diode, which sits above the panel, can meet the box: the model is exact; a
+        diode flat on its panel sees nothing below that plane."""
+        g, cfg = self.geometry, self.config
+        out = np.zeros((sl.stop - sl.start, cfg.n_diodes), bool)
+        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
+        s = g.sun_dir_body[sl]
+        for k, d in enumerate(cfg.diodes):
+            p = panel_axes(d.panel)[0]
+            # (a diode flat on its panel sees nothing below the panel's plane: never)
+            if isinstance(d.aperture, CircularWell) and d.normal_body @ p < 1.0 - 1e-9:
+                with np.errstate(invalid="ignore"):
+                    out[:, k] = (s @ p < np.sin(a)) & (s @ d.normal_body > -np.sin(a))
+        return out
+
     @functools.cached_property
     def visibility(self):
         """Return the ``DirectionVisibility`` of the check's albedo reference: in the cells of
@@ -382,6 +402,7 @@ class PreparedRun:
         native_albedo, native_mesh = native.albedo_box_w_m2, native.albedo_w_m2
         fine = self.analytic(sl, self.map_refined, direct=False, mesh=True)
         native_direct = direct_ref.result().direct_w_m2
+        window_shadow = self.window_shadow(sl)
         out = {
             "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2, res.reflected_w_m2], axis=-1),
             "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2, res.reflected_se_w_m2], axis=-1),
@@ -394,8 +415,8 @@ class PreparedRun:
             "analytic_albedo_native_mesh": native_mesh,
             "albedo_mesh": fine.albedo_mesh_w_m2,
             "albedo_visibility_error": fine.albedo_visibility_error_w_m2,
-            "direct_unchecked": self.parts_shadow(sl) | self.window_shadow(sl),
-            "direct_unchecked_window": self.window_shadow(sl),
+            "direct_unchecked": self.parts_shadow(sl) | window_shadow | self.round_well_shadow(sl),
+            "direct_unchecked_window": window_shadow,
             "valid": valid & res.valid,
         }
         return out

@@ -312,6 +312,8 @@ class _DrJitOps:
         self.where = dr.select
         self.sqrt, self.exp, self.log, self.floor = dr.sqrt, dr.exp, dr.log, dr.floor   # (the window's kernel)
         self.tiny = tiny
+        self.sqrt = dr.sqrt
+        self.asin = dr.asin
 
 
 def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None,
@@ -508,7 +510,9 @@ def disc_directions(sun_body, offsets):
 
 # Responses known to read exactly 0 for every direction with d_n <= 0 (behind the diode's plane): for these the
 # direct Sun is evaluated only where part of the solar disc lies in front of the diode.
-_DARK_BEHIND = (_resp.CosineResponse, _resp.ReflectionResponse, _resp.Eq415Response, _resp.WellAperture)
+_DARK_BEHIND = (_resp.CosineResponse, _resp.ReflectionResponse, _resp.Eq415Response, _resp.WellAperture,
+                _resp.CircularWell)
+_WELLS = (_resp.WellAperture, _resp.CircularWell)
 
 
 def _disc_sample(sun_body, sun_angular_radius_rad, rings, earth_body_m=None, radius_m=None):
@@ -540,7 +544,7 @@ def _pair_response(resps, frames, diode, d):
         t = np.flatnonzero(diode == k)
         dk = d[:, t] @ frames[k].T
         r = resps[k]
-        if isinstance(r, _resp.WellAperture):
+        if isinstance(r, _WELLS):
             lit_k = r.lit_fraction(dk)
             resp[:, t] = lit_k * np.clip(dk[..., 2], 0.0, None)          # = WellAperture.response, sharing lit
             if r.height_m > 0:
@@ -665,8 +669,11 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     (the others read exactly 0 for the responses of :mod:`simcore.radiometry.response` and wells), and
     the 397-point average only on the pairs with a kink.
     """
-    if body is not None and not all(isinstance(r, _resp.WellAperture) for r in resps):
-        raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture responses")
+    # (a round well's box visibility is that of the square inscribed in its rim, CircularWell.rims: exact where
+    # the box cannot shade the diode, the Sun above its panel's plane; elsewhere the check leaves it out,
+    # simcore.pipeline.run.PreparedRun.round_well_shadow)
+    if body is not None and not all(isinstance(r, _WELLS) for r in resps):
+        raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture or CircularWell responses")
     n_ep, K = sun_body.shape[0], len(frames)
     out = np.zeros((n_ep, K))
     dirs, weights, partial_earth = _disc_sample(sun_body, sun_angular_radius_rad, rings, earth_body_m, radius_m)

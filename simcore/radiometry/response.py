@@ -10,7 +10,7 @@ the diode (W/m^2 on its sensitive area). A bare ideal diode gives cos(theta).
 * :class:`ReflectionResponse` -- thesis eq. 2.32 (Ortega et al. 2010), the
   package's reflection losses ``I = (I_max - I_0) cos(theta) + I_0``.
 * :class:`Eq415Response` -- thesis eq. 4.15, the linear FOV cut-off.
-* :class:`simcore.shapes.aperture.WellAperture` -- the real aperture: the exact
+* :class:`simcore.shapes.aperture.WellAperture` (and ``CircularWell``, a round hole) -- the real aperture: the exact
   overlap of the diode with the well's opening projected along ``d``, times
   cos(theta) -- the geometry the renderer traces. Used as it is.
 
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcore.shapes.aperture import WellAperture
+from simcore.shapes.aperture import CircularWell, WellAperture
 from simcore.constants import EQ415_CUTOFF_COS
 
 

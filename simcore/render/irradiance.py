@@ -95,7 +95,7 @@ from simcore import _llvm
 from simcore._llvm import host_array
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
 from simcore.environment.maps import named_map
-from simcore.shapes.aperture import lit_rectangle_of
+from simcore.shapes.aperture import disc_rectangle_overlap, lit_rectangle_of
 
 SUN_ANGULAR_RADIUS_RAD = float(np.arcsin(R_SUN_M / AU_M))  # 0.2666 deg: the 0.53 deg disc at 1 AU
 
@@ -346,6 +346,14 @@ def occluder_scene(mesh, mi):
     return mi.load_dict({"type": "scene", "occluders": m})
 
 
+class _DrOps:
+    """Dr.Jit's functions under the names of simcore.shapes.aperture's array-library neutral formulas."""
+
+    def __init__(self, dr):
+        self.maximum, self.minimum, self.where = dr.maximum, dr.minimum, dr.select
+        self.sqrt, self.asin = dr.sqrt, dr.asin
+
+
 def rays_blocked(scene, origins, directions, mi):
     """Return (M,) bool: whether each ray (origins, unit directions (M, 3), body frame) meets the occluders of
     ``scene`` (:func:`occluder_scene`)."""
@@ -422,6 +430,19 @@ class Renderer:
         else:
             # the diode's own sides (where the points are sampled) with the well's opening
             self._ap_params = np.array([[hx, hy, *a.rims[2:]] for (hx, hy), a in zip(half, aps)])
+        # the albedo proposal's: the exact lit rectangle of a square well, one holding the lit part of a round
+        # well (CircularWell.hint_rims, a superset: unbiased); the split above takes one inside it (subset)
+        self._ap_hint = self._ap_params if aps is None else np.array(
+            [[hx, hy, *getattr(a, "hint_rims", a.rims)[2:]] for (hx, hy), a in zip(half, aps)])
+        # Round wells (CircularWell: the lit part is not a rectangle): no split (one on a rectangle inside the lit
+        # part would leave group B a sliver that few of its samples find, and a standard error that misses it)
+        # but a control variate, mode 3 (_round_cv): each lane adds the closed-form lit fraction of the disc and
+        # subtracts whether its point lies in the disc's lit part, so where the mesh is the analytic well the
+        # lanes agree and the noise is that of what else shades the diode. (radius, height) m, 0 for others.
+        self._plain = np.zeros(len(half), bool) if aps is None else np.array(
+            [not getattr(a, "exact_rectangle", True) for a in aps])
+        self._round_params = np.zeros((len(half), 2)) if aps is None else np.array(
+            [[getattr(a, "radius_m", 0.0), a.height_m] for a in aps])
         self.control_variate = bool(control_variate) and aps is not None
         self._win = _window_params(diodes)
         self._vis = self._visibility_table()
@@ -574,16 +595,17 @@ class Renderer:
         return np.concatenate(out)
 
     # -- where the analytic well lets light through (aperture split, see _rounds)
-    def _well_rect(self, t, task, d):
+    def _well_rect(self, t, task, d, key="ap"):
         """Return (x0, x1, y0, y1, lit) for unit directions ``d``: the rectangle of the diode
         (fractions of its sides, centred, so within [-1/2, 1/2]) whose rays toward ``d`` leave
         through the opening of the diode's analytic well (``simcore.shapes.aperture.WellAperture``
         geometry: the opening shifted by -h tan along each wall axis), and its area fraction,
-        the lit fraction."""
+        the lit fraction. ``key``: "ap" (the split's and the probes' rectangle) or "ap_hint" (the albedo
+        proposal's)."""
         dr, mi = self._dr, self._mi
         fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
-        rims = [dr.gather(mi.Float, host_array(mi.Float, t["ap"][:, k]), task)
+        rims = [dr.gather(mi.Float, host_array(mi.Float, t[key][:, k]), task)
                 for k in range(8)]          # half diode; half opening and height of the lower and top rims
         return lit_rectangle_of(rims, du, dv, dn, maximum=dr.maximum, minimum=dr.minimum, where=dr.select)
 
@@ -680,6 +702,36 @@ class Renderer:
         cross = win & ~under
         return dr.select(cross, exit_, o), dr.select(cross, weight, 1.0)
 
+    def _round_cv(self, t, task, d, fx, fy):
+        """Return the control variate of a round well's lanes (mode 3; 0 for the others): the closed-form lit
+        fraction of the diode through the rim's disc toward ``d`` (CircularWell, the Dr.Jit form of
+        simcore.shapes.aperture.disc_rectangle_overlap) minus 1 where the lane's diode point (fx, fy) lies in
+        that lit part. Its mean over the diode is 0 for any ``d``, so the estimate stays unbiased whatever the
+        mesh; the lane's traced 1 or 0 and this term cancel where the mesh is the analytic well."""
+        dr, mi = self._dr, self._mi
+        if not (self.control_variate and self._plain.any()):
+            return 0.0                      # no round well: the kernels stay as they were
+        mode = dr.gather(mi.UInt32, host_array(mi.UInt32, t["mode"]), task)
+        g = lambda a: dr.gather(mi.Float, host_array(mi.Float, a), task)  # noqa: E731
+        ax, ay = g(t["ap"][:, 0]), g(t["ap"][:, 1])                           # half diode sides, m
+        r, h = g(t["round"][:, 0]), g(t["round"][:, 1])
+        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
+        du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
+        inv = 1.0 / dr.maximum(dn, 1e-12)
+        sx, sy = h * du * inv, h * dv * inv                                   # the ray's offset at the rim
+        px, py = 2.0 * ax * fx + sx, 2.0 * ay * fy + sy
+        inside = px * px + py * py <= r * r
+        # the lit fraction, in units of the half side ax and in float64 (the closed form's differences of disc
+        # segments cancel: float32 would leave ~1e-7 where the disc lights nothing); within 1e-9 of 0 or 1 it
+        # is 0 or 1 (as the rectangles' exact zeros and ones: at most 1.4e-6 W/m^2)
+        F = mi.Float64
+        s = 1.0 / F(ax)
+        area = disc_rectangle_overlap(F(-sx) * s, F(-sy) * s, dr.maximum(F(r) * s, 1e-6), -1.0, 1.0, -F(ay) * s,
+                                      F(ay) * s, ops=_DrOps(dr))
+        lit = area / (4.0 * F(ay) * s)
+        lit = mi.Float(dr.select(lit < 1e-9, 0.0, dr.select(lit > 1.0 - 1e-9, 1.0, lit)))
+        return dr.select((mode == 3) & (dn > 0), lit - dr.select(inside, 1.0, 0.0), 0.0)
+
     # -- direct Sun kernel
     def _direct_kernel(self, t, task, j):
         dr, mi = self._dr, self._mi
@@ -717,12 +769,15 @@ class Renderer:
             a_, _ = mi.sample_tea_32(key ^ mi.UInt32(_WINDOW_KEY), j, _TEA_ROUNDS)
             o, tw, blocked = self._through_window(t, task, o, d, fx, fy, mi.Float(a_ >> 8) * (1.0 / 16777216.0))
             wgt = wgt * tw
+        cv = self._round_cv(t, task, d, fx, fy)
         if t["earth"] is not None:
             c = self._gather3(self._v3(t["earth"]), task)
             b = dr.dot(d, c)
             perp = c - b * d
-            blocked |= (b > 0) & (dr.squared_norm(perp) < dr.opaque(mi.Float, self.earth_radius_m ** 2))
-        val = dr.select(blocked, 0.0, wgt)
+            behind_earth = (b > 0) & (dr.squared_norm(perp) < dr.opaque(mi.Float, self.earth_radius_m ** 2))
+            blocked |= behind_earth
+            cv = dr.select(behind_earth, 0.0, cv)
+        val = dr.select(blocked, 0.0, wgt) + cv
         if self.sun_angular_radius_rad > 0:
             val = val * dr.maximum(dr.dot(self._gather3(self._v3(t["n"]), task), d), 0.0)
         return val
@@ -766,9 +821,10 @@ class Renderer:
         else:
             o, tw, blocked = self._through_window(t, task, o, d, fx, fy, r[5])
             wgt = wgt * tw
-        ok = hit & (cos_sun > 0) & (cos_d > 0) & ~blocked
+        ok = hit & (cos_sun > 0) & (cos_d > 0)
+        f = dr.select(blocked, 0.0, wgt) + self._round_cv(t, task, d, fx, fy)
         # f / q with q = pmf_b / Omega_b, Omega_b = 2 pi xmax dt / N_P; L = rho E cos_sun / pi
-        return dr.select(ok, wgt * rho * cos_sun * cos_d * (2.0 / _N_P) * xmax * dt / pmf, 0.0)
+        return dr.select(ok, f * rho * cos_sun * cos_d * (2.0 / _N_P) * xmax * dt / pmf, 0.0)
 
     # -- reflected kernel: paths from the diode off the spacecraft's BSDFs (module docstring)
     def _reflected_kernel(self, t, task, j):
@@ -1072,7 +1128,7 @@ class Renderer:
                                 dr.gather(mi.Float, host_array(mi.Float, t["xmax"]), task), t01, phi)
         rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
         hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot)
-        lit = self._well_rect(t, task, d)[4]
+        lit = self._well_rect(t, task, d, "ap_hint")[4]
         dn = dr.dot(g3("n"), d)
         # cos_sun widened by ~half a bin on the ground, so that bins the terminator crosses
         # between their corners keep their weight
@@ -1325,7 +1381,8 @@ class Renderer:
     def _tasks(self, ep, dk, sun, earth, keys=None):
         dd = self._diode_f32
         t = dict(k=dk, pos=dd["pos"][dk], U=dd["U"][dk], V=dd["V"][dk], n=dd["n"][dk], sun=sun[ep],
-                 frame=self.diodes.frames[dk], ap=self._ap_params[dk])
+                 frame=self.diodes.frames[dk], ap=self._ap_params[dk], ap_hint=self._ap_hint[dk],
+                 round=self._round_params[dk])
         t["earth"] = None if earth is None else earth[ep] - dd["pos"][dk]
         if self._win is not None:
             t["win"] = self._win[dk]
@@ -1557,7 +1614,9 @@ class Renderer:
             sb = np.zeros(T, bool) if skip is None else skip[:, 1]
             na = np.where(sb, size(counts), na)        # only A: give it the whole budget
             nb = np.where(sa, size(counts), nb)
-            parts = [(1, todo[~sa], na[~sa]), (2, todo[~sb], nb[~sb])]
+            whole = self._plain[k_]                    # round wells: no split, the disc's control variate
+            sa, sb = sa | whole, sb | whole
+            parts = [(3, todo[whole], size(counts)[whole]), (1, todo[~sa], na[~sa]), (2, todo[~sb], nb[~sb])]
         else:
             parts = [(0, todo, size(counts))]
         idx = np.concatenate([p[1] for p in parts])

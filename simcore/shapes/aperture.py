@@ -112,6 +112,13 @@ class WellAperture:
         return (self.diode_x_m / 2, self.diode_y_m / 2, wx, wy, self.height_m - self.chamfer_m,
                 wx + widen, wy + widen, self.height_m)
 
+    exact_rectangle = True      # the lit part is the rectangle of rims: the renderer's aperture split is exact
+
+    @property
+    def hint_rims(self):
+        """Return :attr:`rims`: the renderer's albedo hint is the exact lit rectangle."""
+        return self.rims
+
     @classmethod
     def bare(cls, diode_area_m2=BPW34_AREA_M2):
         """Return a square diode with no well (pure cosine response)."""
@@ -150,34 +157,54 @@ class WellAperture:
         return self.lit_fraction(d) * np.clip(d[..., 2], 0.0, None)
 
 
-def _disc_quadrant_area(a, b, r):
+class _NumpyOps:
+    """numpy's functions under the names the array-library neutral formulas below use."""
+    maximum, minimum, where, sqrt, asin = np.maximum, np.minimum, np.where, np.sqrt, np.arcsin
+
+
+def _disc_quadrant_area(a, b, r, ops=_NumpyOps):
     """Return the area of the disc of radius ``r`` centred at the origin with x <= a and y <= b (closed
     form, arrays broadcast): the integral over x <= a of the chord length below y = b, piecewise in the
-    antiderivative S(x) = (x sqrt(r^2 - x^2) + r^2 asin(x / r)) / 2 of the half chord."""
-    a, b, r = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (a, b, r)))
+    antiderivative S(x) = (x sqrt(r^2 - x^2) + r^2 asin(x / r)) / 2 of the half chord.
+
+    Array-library neutral: ``ops`` gives maximum, minimum, where, sqrt and asin (numpy by default; the
+    analytic albedo sum passes Dr.Jit's), so the closed form and its kernel form are one formula."""
+    mx, mn, where = ops.maximum, ops.minimum, ops.where
+
+    def clip(x, lo, hi):
+        return mn(mx(x, lo), hi)
 
     def S(x):
-        x = np.clip(x, -r, r)
-        return 0.5 * (x * np.sqrt(np.maximum(r * r - x * x, 0.0)) + r * r * np.arcsin(np.clip(x / r, -1.0, 1.0)))
+        x = clip(x, -r, r)
+        return 0.5 * (x * ops.sqrt(mx(r * r - x * x, 0.0)) + r * r * ops.asin(clip(x / r, -1.0, 1.0)))
 
-    hi = np.clip(a, -r, r)                                     # x runs over [-r, hi]
-    c = np.sqrt(np.maximum(r * r - b * b, 0.0))                # |x| <= c: the chord straddles y = b
+    s_lo = -0.25 * np.pi * r * r                               # S(-r)
+    hi = clip(a, -r, r)                                        # x runs over [-r, hi]
+    c = ops.sqrt(mx(r * r - b * b, 0.0))                       # |x| <= c: the chord straddles y = b
     # |x| <= c: the chord's part below b has length b + s(x) (for either sign of b)
-    lo_in, hi_in = -c, np.minimum(c, hi)
-    inner = np.where(hi_in > lo_in, b * (hi_in - lo_in) + S(hi_in) - S(lo_in), 0.0)
+    lo_in, hi_in = -c, mn(c, hi)
+    inner = where(hi_in > lo_in, b * (hi_in - lo_in) + S(hi_in) - S(lo_in), 0.0)
     # |x| > c: the whole chord (2 s(x)) when b >= 0, none of it when b < 0
-    left = 2.0 * (S(np.minimum(hi, -c)) - S(-r))
-    right = np.where(hi > c, 2.0 * (S(hi) - S(c)), 0.0)
-    outer = np.where(b >= 0, left + right, 0.0)
+    left = 2.0 * (S(mn(hi, -c)) - s_lo)
+    right = where(hi > c, 2.0 * (S(hi) - S(c)), 0.0)
+    outer = where(b >= 0, left + right, 0.0)
     return inner + outer
 
 
-def disc_rectangle_overlap(cx, cy, r, x0, x1, y0, y1):
+def disc_rectangle_overlap(cx, cy, r, x0, x1, y0, y1, ops=None):
     """Return the area of the disc of centre (cx, cy) and radius ``r`` > 0 inside the rectangle [x0, x1] x
-    [y0, y1] (closed form, any units, arrays broadcast; 0 for an empty rectangle)."""
-    q = _disc_quadrant_area
+    [y0, y1] (closed form, any units, arrays broadcast; 0 for an empty rectangle). ``ops``: None for numpy
+    arrays, or an object with maximum, minimum, where, sqrt and asin (e.g. Dr.Jit's) for a rectangle known
+    not to be empty."""
+    if ops is None:
+        cx, cy, r, x0, x1, y0, y1 = np.broadcast_arrays(*(np.asarray(v, dtype=float)
+                                                          for v in (cx, cy, r, x0, x1, y0, y1)))
+    q = (lambda a, b, rr: _disc_quadrant_area(a, b, rr)) if ops is None else \
+        (lambda a, b, rr: _disc_quadrant_area(a, b, rr, ops))
     area = q(x1 - cx, y1 - cy, r) - q(x0 - cx, y1 - cy, r) - q(x1 - cx, y0 - cy, r) + q(x0 - cx, y0 - cy, r)
-    return np.where((np.asarray(x1) > x0) & (np.asarray(y1) > y0), np.maximum(area, 0.0), 0.0)
+    if ops is not None:
+        return ops.maximum(area, 0.0)
+    return np.where((x1 > x0) & (y1 > y0), np.maximum(area, 0.0), 0.0)
 
 
 @dataclass(frozen=True)
@@ -207,6 +234,41 @@ class CircularWell:
     @property
     def diode_area_m2(self):
         return self.diode_x_m * self.diode_y_m
+
+    exact_rectangle = False     # the lit part is not a rectangle: the renderer samples its diode plainly
+
+    @property
+    def opening_x_m(self):
+        """The rim's diameter (m): the side of the square around it (the mount's floor plate and footprint)."""
+        return 2.0 * self.radius_m
+
+    opening_y_m = opening_x_m
+
+    @property
+    def rims(self):
+        """Return the 8 parameters of :attr:`WellAperture.rims` for the square inscribed in the rim (half side
+        r / sqrt 2, same height): its lit rectangle lies inside the disc's lit part (the cylinder is convex
+        and contains the diode), so the renderer's probe rays from it (what shades the diode besides its own
+        well) meet none of the well's own walls."""
+        w = self.radius_m / np.sqrt(2.0)
+        return (self.diode_x_m / 2, self.diode_y_m / 2, w, w, self.height_m, w, w, self.height_m)
+
+    @property
+    def hint_rims(self):
+        """Return :attr:`rims` for the square circumscribed about the rim (half side r): its lit rectangle
+        holds the disc's lit part, a superset for the albedo sampling's proposal (unbiased)."""
+        r = self.radius_m
+        return (self.diode_x_m / 2, self.diode_y_m / 2, r, r, self.height_m, r, r, self.height_m)
+
+    def kernel(self, du, dv, dn, ops):
+        """Return the response (lit fraction x cos) on generic arrays (numpy or Dr.Jit through ``ops``: maximum,
+        minimum, where, tiny, sqrt, asin): :func:`disc_rectangle_overlap` of the diode with the rim's disc
+        shifted by -h (du, dv) / dn, over the diode's area, times dn; 0 from behind."""
+        inv = 1.0 / ops.maximum(dn, ops.tiny)
+        cx, cy = -self.height_m * du * inv, -self.height_m * dv * inv
+        hx, hy = self.diode_x_m / 2, self.diode_y_m / 2
+        area = disc_rectangle_overlap(cx, cy, self.radius_m, -hx, hx, -hy, hy, ops=ops)
+        return ops.where(dn > 0, area * (1.0 / self.diode_area_m2) * dn, 0.0)
 
     def lit_fraction(self, d_diode):
         """Return the lit fraction of the diode (0..1) for unit directions ``d_diode`` (..., 3) towards the

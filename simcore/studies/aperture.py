@@ -54,7 +54,7 @@ from simcore.radiometry.analytic import BodyBox, diode_irradiance
 from simcore.radiometry.response import Eq415Response
 from simcore.render.irradiance import DiodeSurfaces, Renderer
 from simcore.sensor.chain import DIODES
-from simcore.shapes.aperture import EQ415_CUTOFF_DEG, WellAperture
+from simcore.shapes.aperture import EQ415_CUTOFF_DEG, CircularWell, WellAperture
 from simcore.shapes.occlusion import direct_visibility
 from simcore.shapes.window import WindowedWell
 from simcore.studies.coverage import CLASSES, coverage_classes, coverage_fractions, pixel_directions
@@ -90,8 +90,12 @@ def well_config(aperture, material="black"):
         raise ValueError("the traced well uses the configuration format, whose diode is the square BPW34 "
                          f"({side / MM:.3f} mm); got {aperture.diode_x_m / MM:.3f} x {aperture.diode_y_m / MM:.3f} mm. "
                          "Give a WellAperture over the BPW34 (WellAperture.design or the configuration's apertures)")
-    well = {"height_mm": aperture.height_m / MM, "opening_mm": [aperture.opening_x_m / MM, aperture.opening_y_m / MM]}
-    if aperture.chamfer_m > 0:
+    if isinstance(aperture, CircularWell):
+        well = {"shape": "round", "diameter_mm": 2.0 * aperture.radius_m / MM, "height_mm": aperture.height_m / MM}
+    else:
+        well = {"height_mm": aperture.height_m / MM,
+                "opening_mm": [aperture.opening_x_m / MM, aperture.opening_y_m / MM]}
+    if getattr(aperture, "chamfer_m", 0.0) > 0:
         well.update(chamfer_mm=aperture.chamfer_m / MM, chamfer_deg=aperture.chamfer_deg)
     return SatelliteConfig.from_dict({"name": "single_well", "mount": {"material": material}, "diode": [
         {"name": "well", "panel": "+z", "normal": [0.0, 0.0, 1.0], "at_mm": [0.0, 0.0], "well": well}]})
