@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from scenes.config import SatelliteConfig, panel_axes
+from scenes.config import SatelliteConfig, body_side_normal
 from scenes.meshes import build_satellite_mesh
 from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
@@ -260,9 +260,11 @@ class PreparedRun:
         a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
         s = g.sun_dir_body[sl]
         for k, d in enumerate(cfg.diodes):
-            p = panel_axes(d.panel)[0]
+            if not isinstance(d.aperture, CircularWell):
+                continue
+            p = body_side_normal(d, cfg.body)       # its panel's normal (a diode on a part: the box face it lies beyond)
             # (a diode flat on its panel sees nothing below the panel's plane: never)
-            if isinstance(d.aperture, CircularWell) and d.normal_body @ p < 1.0 - 1e-9:
+            if d.normal_body @ p < 1.0 - 1e-9:
                 with np.errstate(invalid="ignore"):
                     out[:, k] = (s @ p < np.sin(a)) & (s @ d.normal_body > -np.sin(a))
         return out
