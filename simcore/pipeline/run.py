@@ -300,7 +300,7 @@ class PreparedRun:
             out[k] = grown | np.roll(grown, 1, axis=1) | np.roll(grown, -1, axis=1)
         return out
 
-    def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True):
+    def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True, box_albedo=False):
         """Return the analytic irradiance of epochs ``sl`` on ``reflectivity_map``; ``mesh``: the albedo with
         the traced :attr:`visibility` where shadows cross the diodes (the check's reference). The direct Sun
         alone (``albedo=False``) is numpy only: it may run in another thread while Dr.Jit renders."""
@@ -312,12 +312,12 @@ class PreparedRun:
                                body=BodyBox.from_config(self.config),
                                sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
                                albedo=albedo, backend="auto" if albedo else "numpy",
-                               visibility=self.visibility if mesh else None)
+                               visibility=self.visibility if mesh else None, box_albedo=box_albedo)
         if any(w is not None for w in self.config.windows):
-            self._windowed_analytic(out, sl, reflectivity_map, direct, mesh, albedo)
+            self._windowed_analytic(out, sl, reflectivity_map, direct, mesh, albedo, box_albedo)
         return out
 
-    def _windowed_analytic(self, res, sl, reflectivity_map, direct, mesh, albedo=True):
+    def _windowed_analytic(self, res, sl, reflectivity_map, direct, mesh, albedo=True, box_albedo=False):
         """Replace in ``res`` (the analytic result of epochs ``sl``) the columns of the diodes under a window by
         the model with the window: each integrand times the slab's closed-form transmittance with its
         footprint (:class:`simcore.shapes.window.WindowedWell`). The direct Sun without the body box (where the
@@ -342,7 +342,7 @@ class PreparedRun:
         if mesh:
             v = self.visibility
             vis = DirectionVisibility(v.mask[idx], v.fine[idx], v.half[idx])
-        alb = diode_irradiance(*args, direct=False, visibility=vis, **common,
+        alb = diode_irradiance(*args, direct=False, visibility=vis, **common, box_albedo=box_albedo,
                                body=BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]))
         res.albedo_w_m2[:, idx] = alb.albedo_w_m2
         for name in ("albedo_mesh_w_m2", "albedo_visibility_error_w_m2", "albedo_box_w_m2"):
@@ -400,7 +400,7 @@ class PreparedRun:
                                        albedo=False, hint=False, reflected=False,
                                        direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
             plain[pick] = np.stack([sub.direct_w_m2, sub.direct_se_w_m2, sub.direct_dof], axis=-1)
-        native = self.analytic(sl, self.map, direct=False, mesh=True)    # box-only and with the traced shares
+        native = self.analytic(sl, self.map, direct=False, mesh=True, box_albedo=True)  # box-only and traced shares
         native_albedo, native_mesh = native.albedo_box_w_m2, native.albedo_w_m2
         fine = self.analytic(sl, self.map_refined, direct=False, mesh=True)
         native_direct = direct_ref.result().direct_w_m2
@@ -859,7 +859,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     fine, native_mesh = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
     mesh, mesh_err = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
     for s, e in chunk_ranges(n, chunk):
-        a = study.analytic(slice(s, e), study.map, mesh=True)
+        a = study.analytic(slice(s, e), study.map, mesh=True, box_albedo=True)
         native[s:e, :, 0], native[s:e, :, 1], native_mesh[s:e] = a.direct_w_m2, a.albedo_box_w_m2, a.albedo_w_m2
         a = study.analytic(slice(s, e), study.map_refined, direct=False, mesh=True)
         fine[s:e], mesh[s:e], mesh_err[s:e] = a.albedo_w_m2, a.albedo_mesh_w_m2, a.albedo_visibility_error_w_m2

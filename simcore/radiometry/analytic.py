@@ -259,7 +259,8 @@ def cell_runs(r_sat_m, sun_unit, refl):
 
 
 # ---- the albedo sums ---------------------------------------------------------------------
-def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None, visibility=None):
+def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None, visibility=None,
+                  box_sum=True):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy; with ``visibility`` (a
     :class:`DirectionVisibility`) also the same sum with its half-fine share, the sum of the well's
     response over its marked cells alone and the sum with the body box alone deciding everywhere (else
@@ -317,9 +318,10 @@ class _DrJitOps:
 
 
 def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None,
-                  visibility=None):
+                  visibility=None, box_sum=True):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor from one Dr.Jit LLVM kernel, and the
-    three sums of :func:`_albedo_numpy` for ``visibility`` (else None, None, None)."""
+    three sums of :func:`_albedo_numpy` for ``visibility`` (else None, None, None; the box-only one None
+    unless ``box_sum``: one accumulator less in the kernel)."""
     dr = _llvm.import_drjit()
     from drjit.llvm import Float, Float64, UInt32
 
@@ -362,8 +364,8 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             a = dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
         if comp is None:
             return (acc + wt * a,)
-        part, alt, box = more
-        box = box + wt * a
+        part, alt, *box = more
+        box = [b + wt * a for b in box]
         if marked[k]:
             # the marked cells lie beyond the diode's first marked row (angle from the normal): a packet of
             # lanes nearer the normal skips the angles and lookups (a branch in the kernel)
@@ -371,7 +373,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
                                       true_fn=_marked_share, false_fn=_unmarked_share)
         else:
             alt = alt + wt * a
-        return acc + wt * a, part, alt, box
+        return (acc + wt * a, part, alt, *box)
 
     def _marked_share(k, a0, a, wt, du, dv, dn, part, alt):
         # the cells of _fine_index: theta from the normal, azimuth from u
@@ -419,7 +421,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             dn = f[2][0] * bx + f[2][1] * by + f[2][2] * bz
             a0 = kernels[k](du, dv, dn, ops)
             state = (a0, wt, bx, by, bz, du, dv, dn, acc[k],
-                     *((acc[K + k], acc[2 * K + k], acc[3 * K + k]) if comp else ()))
+                     *((acc[K + k], acc[2 * K + k]) + ((acc[3 * K + k],) if box_sum else ()) if comp else ()))
             # the body's shadow and the visible shares only where the diode sees the cell: a packet of lanes
             # that all read 0 skips them (a branch in the kernel), ~20 % of this kernel's time
             out = dr.if_stmt(args=state, cond=a0 > 0, true_fn=functools.partial(_diode_term, k),
@@ -428,11 +430,12 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             if comp is not None:
                 part.append(out[1])
                 alt.append(out[2])
-                box.append(out[3])
+                if box_sum:
+                    box.append(out[3])
         return (t + 1, *new, *part, *alt, *box)
 
     comp = None if visibility is None else visibility.compact
-    n_acc = K if comp is None else 4 * K
+    n_acc = K if comp is None else (4 if box_sum else 3) * K
     if comp is not None:
         nt, nph = visibility.mask.shape[1:]
         sub, h = comp[3], comp[3] // 2
@@ -451,7 +454,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         sums[:, k] = np.asarray(acc[k].numpy(), dtype=np.float64).reshape(2, n_ep, W).sum(axis=(0, 2))
     if comp is None:
         return sums, None, None, None
-    return sums[:, :K], sums[:, 2 * K:3 * K], sums[:, K:2 * K], sums[:, 3 * K:]
+    return sums[:, :K], sums[:, 2 * K:3 * K], sums[:, K:2 * K], (sums[:, 3 * K:] if box_sum else None)
 
 
 def _box_hit_dr(dr, origin, d, half):
@@ -737,7 +740,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
 def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_body, responses, *,
                      map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
                      albedo=True, backend="auto", precision="single", batch_epochs=4096, body=None,
-                     sun_angular_radius_rad=0.0, direct=True, visibility=None):
+                     sun_angular_radius_rad=0.0, direct=True, visibility=None, box_albedo=False):
     """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`AnalyticIrradiance`.
 
     ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
@@ -760,7 +763,8 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     well's response times the visible share it gives (the body box decides elsewhere);
     ``albedo_mesh_w_m2`` is then the albedo through those directions before their shadow, and
     ``albedo_visibility_error_w_m2`` the difference its half-fine share makes (the quadrature's error),
-    and ``albedo_box_w_m2`` the albedo without it (the body box deciding everywhere), from the same pass.
+    and, with ``box_albedo``, ``albedo_box_w_m2`` the albedo without it (the body box deciding everywhere),
+    from the same pass.
     """
     r_sat = _rows("r_sat_ecef_m", r_sat_ecef_m)
     r_sun = _rows("r_sun_ecef_m", r_sun_ecef_m)
@@ -815,7 +819,7 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
         raise ValueError(f"visibility is for {visibility.mask.shape[0]} diodes, not {frames.shape[0]}")
     alb_alt = None if visibility is None else np.zeros_like(alb)
     alb_band = None if visibility is None else np.zeros_like(alb)
-    alb_box = None if visibility is None else np.zeros_like(alb)
+    alb_box = None if visibility is None or not box_albedo else np.zeros_like(alb)
     if albedo:
         sun_unit = r_sun / np.linalg.norm(r_sun, axis=1)[:, None]
         batch = max(1, int(batch_epochs))
@@ -826,13 +830,16 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
             fn = _albedo_drjit if backend == "drjit" else _albedo_numpy
             extra = (precision,) if backend == "drjit" else ()
             alb[sl], alt, band, box_only = fn(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl,
-                                              *extra, body, visibility)
+                                              *extra, body, visibility, box_albedo)
             if visibility is not None:
-                alb_alt[sl], alb_band[sl], alb_box[sl] = alt, band, box_only
+                alb_alt[sl], alb_band[sl] = alt, band
+            if alb_box is not None:
+                alb_box[sl] = box_only
         alb *= (e_sun / np.pi)[:, None]
         if visibility is not None:
             alb_alt *= (e_sun / np.pi)[:, None]
             alb_band *= (e_sun / np.pi)[:, None]
+        if alb_box is not None:
             alb_box *= (e_sun / np.pi)[:, None]
     err = None if visibility is None else np.abs(alb - alb_alt)
     return AnalyticIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit,
