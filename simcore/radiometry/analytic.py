@@ -329,12 +329,20 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     n_ep, K = r_sat.shape[0], frames.shape[0]
     rows, first, count = cell_runs(r_sat, sun_unit, refl)
     W = rows.shape[1]
-    # Lane order (piece, epoch, row): second pieces are mostly empty and then fill whole SIMD packets.
-    lane_row = _llvm.host_array(UInt32, rows.transpose(2, 0, 1))
-    lane_first = _llvm.host_array(UInt32, first.transpose(2, 0, 1))
-    lane_count = _llvm.host_array(UInt32, count.transpose(2, 0, 1))
-    n_lanes = 2 * n_ep * W
-    lane_ep = dr.arange(UInt32, n_lanes) // W % n_ep
+    # One lane per run of columns (piece, epoch, row) that holds cells, the lanes ordered by run length (stable:
+    # equal lengths stay in (piece, epoch, row) order, neighbours in time and space), so that the lanes of a
+    # SIMD packet loop about as long as each other (71 % of the packets' lane-iterations did work in the
+    # (piece, epoch, row) order on the default study's refined cells). Each lane sums its own run in the same
+    # order as before and the lanes' sums go back to (piece, epoch, row) order before they are added: the sums
+    # are bit for bit those of the plain order.
+    n_all = 2 * n_ep * W
+    runs = count.transpose(2, 0, 1).reshape(-1)
+    order = np.argsort(-runs, kind="stable")[:max(int(np.count_nonzero(runs)), 2)]  # >= 2: no literal
+    lane_row = _llvm.host_array(UInt32, rows.transpose(2, 0, 1).reshape(-1)[order])
+    lane_first = _llvm.host_array(UInt32, first.transpose(2, 0, 1).reshape(-1)[order])
+    lane_count = _llvm.host_array(UInt32, runs[order])
+    n_lanes = len(order)
+    lane_ep = _llvm.host_array(UInt32, (np.arange(n_all) // W % n_ep)[order])
 
     def table(a):
         return _llvm.host_array(F, a)
@@ -450,8 +458,10 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     _, *acc = dr.while_loop(state=state, cond=cond, body=body)
     dr.eval(*acc)
     sums = np.empty((n_ep, n_acc))
+    lanes = np.zeros(n_all)
     for k in range(n_acc):
-        sums[:, k] = np.asarray(acc[k].numpy(), dtype=np.float64).reshape(2, n_ep, W).sum(axis=(0, 2))
+        lanes[order] = np.asarray(acc[k].numpy(), dtype=np.float64)
+        sums[:, k] = lanes.reshape(2, n_ep, W).sum(axis=(0, 2))
     if comp is None:
         return sums, None, None, None
     return sums[:, :K], sums[:, 2 * K:3 * K], sums[:, K:2 * K], (sums[:, 3 * K:] if box_sum else None)
