@@ -438,3 +438,30 @@ def test_self_shadowing_counts_the_window_as_the_diodes_own_optics():
     assert abs(row["response_loss"]) <= 3 * row["response_loss_se"] + 1e-6
     assert row["shadowed_fov_fraction"] == 0.0
 
+
+
+def test_a_chamfered_well_under_a_window_keeps_its_top_rim():
+    # Under a window too wide for its edges to matter, the closed form is the well's own response (both rims:
+    # WellAperture.response, the overlap model) times the unpolarised slab transmittance written out above.
+    # Before the mend it dropped the chamfer's top rim: 0.417 against 0.613 at 34.4 deg for a 1 mm, 45 deg bevel.
+    from simcore.radiometry.response import NUMPY_OPS
+    from simcore.shapes.aperture import WellAperture
+    well = WellAperture(2.65e-3, 2.65e-3, 5.0e-3, 5.0e-3, 1.5e-3, chamfer_m=1.0e-3, chamfer_deg=45.0)
+    win = Window(1.5, 1e-3, 1.5e-3, (1.0, 1.0))
+    theta = np.radians(np.arange(0.0, 80.0, 2.0))
+    for phi in (0.0, np.radians(30.0)):
+        d = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], -1)
+        exact = well.response(d) * unpolarised_T(theta, 1.5)
+        m = WindowedWell(well, win)
+        # (the chamfer matters here: the same well without it differs by up to 0.2 of normal incidence)
+        assert np.max(np.abs(well.response(d) - WellAperture(2.65e-3, 2.65e-3, 5e-3, 5e-3, 1.5e-3).response(d))) > 0.05
+        np.testing.assert_allclose(m.response(d), exact, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(m.kernel(d[:, 0], d[:, 1], d[:, 2], NUMPY_OPS), exact, rtol=1e-9, atol=1e-12)
+
+
+def test_a_window_over_a_round_well_is_refused_in_one_line(tmp_path, config_refused):
+    path = tmp_path / "round.toml"
+    path.write_text('[[diode]]\npanel = "+z"\nnormal = [0, 0, 1]\nat_mm = [0, 0]\n'
+                    'well = {shape = "round", diameter_mm = 4.4, height_mm = 1.0}\n'
+                    'window = {index = 1.5, thickness_mm = 1.0, gap_mm = 1.0, size_mm = [10, 10]}\n')
+    config_refused(path, "a window over a round well is not modelled")

@@ -127,7 +127,7 @@ class WindowedWell:
         """Return sum over the slab's terms k of c q^k (mean over s, p) x the share of the diode that the well
         lights and whose k-th exit point lies in the window's footprint, x cos theta; (...,) for directions
         (..., 3) in the diode frame (0 behind the diode)."""
-        from simcore.shapes.aperture import lit_rectangle
+        from simcore.shapes.aperture import lit_rectangle_of
         w = self.well
         d = np.asarray(d_diode, float)
         shape = d.shape[:-1]
@@ -138,8 +138,7 @@ class WindowedWell:
             return out.reshape(shape)
         d = d[front]
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            x0, x1, y0, y1, lit = lit_rectangle(w.diode_x_m / 2, w.diode_y_m / 2, w.opening_x_m / 2,
-                                                w.opening_y_m / 2, w.height_m, d[:, 0], d[:, 1], d[:, 2])
+            x0, x1, y0, y1, lit = lit_rectangle_of(w.rims, d[:, 0], d[:, 1], d[:, 2])    # a chamfer's top rim too
         # the lit rectangle in metres (u, v)
         lo = np.stack([x0 * w.diode_x_m, y0 * w.diode_y_m], -1)
         hi = np.stack([x1 * w.diode_x_m, y1 * w.diode_y_m], -1)
@@ -195,12 +194,10 @@ class WindowedWell:
         mx, mn, where = ops.maximum, ops.minimum, ops.where
         c = mx(dn, 1e-12)
         inv = 1.0 / c
-        # the well's lit rectangle, metres along u and v: the diode within the opening shifted by -h d_uv / d_n
-        ax, ay = w.diode_x_m / 2, w.diode_y_m / 2
-        sx, sy = w.height_m * du * inv, w.height_m * dv * inv
-        x0, x1 = mx(-ax, -w.opening_x_m / 2 - sx), mn(ax, w.opening_x_m / 2 - sx)
-        y0, y1 = mx(-ay, -w.opening_y_m / 2 - sy), mn(ay, w.opening_y_m / 2 - sy)
-        lit = mx(x1 - x0, 0.0) * mx(y1 - y0, 0.0) * (1.0 / (w.diode_x_m * w.diode_y_m))
+        # the well's lit rectangle (both rims of a chamfered well), metres along u and v
+        from simcore.shapes.aperture import lit_rectangle_of
+        x0, x1, y0, y1, lit = lit_rectangle_of(w.rims, du, dv, dn, maximum=mx, minimum=mn, where=where)
+        x0, x1, y0, y1 = x0 * w.diode_x_m, x1 * w.diode_x_m, y0 * w.diode_y_m, y1 * w.diode_y_m
         ct = ops.sqrt(mx(1.0 - (du * du + dv * dv) * (1.0 / (n * n)), 1e-12))        # cos theta_t
         a = ops.exp(-win.absorption_per_m * t / ct)
         inner = t / (n * ct)
