@@ -399,6 +399,15 @@ def _round_well(well, fov_deg, where):
     return aperture, (full if fov_deg is None else float(fov_deg))
 
 
+def _check_chamfer(aperture, mount, where):
+    """Raise a one-line ConfigError when a well's chamfer would cut through its walls (a panel's or a part's diode)."""
+    widen_m = aperture.rims[5] - aperture.rims[2]
+    if widen_m >= mount.wall_m:
+        raise ConfigError(f"{where}: the well's chamfer widens the opening by {widen_m / MM:.3f} mm on each side, "
+                          f"through the {mount.wall_m / MM:g} mm wall; make chamfer_mm x tan(chamfer_deg) smaller "
+                          "than [mount] wall_mm")
+
+
 def _aperture_for(fov_deg, well, where):
     """Return (WellAperture, fov_deg) for a diode: designed from the FOV (eq. 4.15) or an explicit well."""
     if well is not None:
@@ -566,6 +575,7 @@ def _build_diode(index, table, body, mount, parts=()):
                               + (f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""))
         part = parts[names.index(table["part"])]
         aperture, fov = _aperture_for(table.get("fov_deg"), table.get("well"), where)
+        _check_chamfer(aperture, mount, where)
         window = _window_for(table.get("window"), aperture, where)
         frame, surface, centre, at = _build_part_diode(where, table, part, mount, aperture)
         for arr in (frame, surface, centre, at):
@@ -602,11 +612,7 @@ def _build_diode(index, table, body, mount, parts=()):
         raise ConfigError(f"{where}: at_mm must be [lateral, along] in mm on the panel, got {table.get('at_mm')!r}")
     aperture, fov = _aperture_for(table.get("fov_deg"), table.get("well"), where)
     window = _window_for(table.get("window"), aperture, where)
-    widen_m = aperture.rims[5] - aperture.rims[2]
-    if widen_m >= mount.wall_m:
-        raise ConfigError(f"{where}: the well's chamfer widens the opening by {widen_m / MM:.3f} mm on each side, "
-                          f"through the {mount.wall_m / MM:g} mm wall; make chamfer_mm x tan(chamfer_deg) smaller "
-                          "than [mount] wall_mm")
+    _check_chamfer(aperture, mount, where)
     frame = diode_frame(n)
     at_m = at * MM
     centre = _place(frame, panel, at_m, aperture, body, mount)

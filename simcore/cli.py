@@ -231,10 +231,12 @@ def cmd_response(args):
     from simcore.errors import InvalidInputError
     from scenes.config import SatelliteConfig
     from simcore.studies.response import check_request, format_table, traced_response
+    from simcore.pipeline.preflight import check_variant
     if args.plot is not None and Path(args.plot).suffix.lower() not in (".png", ".pdf"):
         raise InvalidInputError(f"--plot {args.plot}: give a .png or .pdf file name")
     cfg = SatelliteConfig.load(args.config)
     check_request(cfg, args.diode, args.plane, args.step, args.samples, args.map_step)   # before any output
+    check_variant(args.variant)
     if args.plot is not None:
         _output_folder(str(Path(args.plot).parent), "--plot")
     resp = traced_response(cfg, diodes=args.diode, plane=args.plane, step_deg=args.step,

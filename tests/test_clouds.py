@@ -77,7 +77,9 @@ def _overcast_counts(model, seeds, wrong_quantile=False):
     global_means = []
     w = named_map("ceres2018-all").cell_area_m2
     for s in seeds:
-        cloudy = model.field(s) > threshold
+        # the model's own overcast cells (CloudWeather.overcast, what realise uses); the wrong quantile
+        # thresholds its field here
+        cloudy = model.field(s) > threshold if wrong_quantile else model.overcast(s)
         counts += cloudy
         values = np.where(cloudy, model.cloudy_state, model.clear_state)
         global_means.append(np.sum(values * w) / np.sum(w))
@@ -125,6 +127,8 @@ def test_the_field_correlation_at_one_correlation_length_is_the_gaussian_spectru
     # The spectrum's correlation at d = L: the flat-sky closed form exp(-1/2), to relative order L^2/R^2
     rho_l = _gaussian_spectrum_correlation(scale, scale)[0]
     assert rho_l == pytest.approx(np.exp(-0.5), abs=scale ** 2)      # 0.6068 vs 0.6065; allowance 0.0062
+    # the model's own correlation (CloudWeather.correlation, its spectrum) is that sum
+    assert weather.correlation(weather.scale_m) == pytest.approx(rho_l, abs=1e-3)
     # Pairs of HEALPix pixels one correlation length apart, in random directions (fixed seed)
     rng = np.random.default_rng(17)
     npix = hp.nside2npix(weather.nside)

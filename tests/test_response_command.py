@@ -68,6 +68,7 @@ def test_kelly_fit_recovers_a_known_factor_and_scale(kappa, scale):
     (["--map-step", "0.1"], "--map-step must lie in"),
     (["--plot", "out.txt"], "give a .png or .pdf"),
     (["--diode", "14", "--plot", "sub/x.png"], "--diode 14 does not exist"),     # the plot folder is not made
+    (["--variant", "bogus", "--plot", "sub/x.png"], "--variant bogus is unknown"),  # (was a traceback + folder)
 ])
 def test_bad_input_is_one_line_and_nothing_is_written(capsys, tmp_path, monkeypatch, argv, words):
     monkeypatch.chdir(tmp_path)

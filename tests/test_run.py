@@ -216,3 +216,4 @@ def test_a_reader_that_stops_early_gets_no_traceback(tmp_path):
         proc.stderr.close()
         proc.wait(timeout=600)
         assert "Traceback" not in err and "BrokenPipeError" not in err, err
+        assert proc.returncode == 141, (proc.returncode, err)    # stopped by the closed pipe, not another error

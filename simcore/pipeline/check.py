@@ -236,7 +236,7 @@ def describe(report):
                      f"share traced against the mesh, a deterministic quadrature)")
     if report.get("direct_unchecked"):
         win = report.get("direct_unchecked_window", 0)
-        other = report["direct_unchecked"] - win if win else report["direct_unchecked"]
+        other = report["direct_unchecked"] - win
         reasons = ([f"{other} where a part the analytic model does not know ([[part]]: panels, antennas, user "
                     f"meshes) may shade the Sun, or the body box a round well's diode (its shadow is clipped "
                     f"against rectangles only)"] if other > 0 else []) + \

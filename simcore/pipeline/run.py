@@ -349,6 +349,13 @@ class PreparedRun:
             if getattr(res, name) is not None:
                 getattr(res, name)[:, idx] = getattr(alb, name)
 
+    def direct_unchecked(self, sl):
+        """Return ((n, K) bool, (n, K) bool): the diode-epochs of ``sl`` whose direct Sun the check leaves out
+        (a part, a window under the body's shadow or a round well under it may shade it: no exact reference),
+        and those of them that are a window's."""
+        window = self.window_shadow(sl)
+        return self.parts_shadow(sl) | window | self.round_well_shadow(sl), window
+
     def window_shadow(self, sl):
         """Return (n, K) bool: the diode-epochs of ``sl`` with a window over the diode whose direct Sun the body box
         may shade: part of the solar disc (its centre or 16 rim points) lies in front of the diode and below its
@@ -404,7 +411,7 @@ class PreparedRun:
         native_albedo, native_mesh = native.albedo_box_w_m2, native.albedo_w_m2
         fine = self.analytic(sl, self.map_refined, direct=False, mesh=True)
         native_direct = direct_ref.result().direct_w_m2
-        window_shadow = self.window_shadow(sl)
+        unchecked, window_shadow = self.direct_unchecked(sl)
         out = {
             "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2, res.reflected_w_m2], axis=-1),
             "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2, res.reflected_se_w_m2], axis=-1),
@@ -417,7 +424,7 @@ class PreparedRun:
             "analytic_albedo_native_mesh": native_mesh,
             "albedo_mesh": fine.albedo_mesh_w_m2,
             "albedo_visibility_error": fine.albedo_visibility_error_w_m2,
-            "direct_unchecked": self.parts_shadow(sl) | window_shadow | self.round_well_shadow(sl),
+            "direct_unchecked": unchecked,
             "direct_unchecked_window": window_shadow,
             "valid": valid & res.valid,
         }
@@ -544,13 +551,11 @@ def build_dataset(study, data, variant):
             "albedo_visibility_error": (("time", "diode"), data["albedo_visibility_error"],
                                         {"units": W, "long_name": "estimated error of the reference's traced "
                                                                   "visible share (its grid made twice as coarse)"}),
-            "direct_unchecked": (("time", "diode"), np.asarray(data.get("direct_unchecked", np.zeros((n, k), bool)),
-                                                               np.int8),
+            "direct_unchecked": (("time", "diode"), np.asarray(data["direct_unchecked"], np.int8),
                                  {"units": "1", "long_name": "1 where a part the analytic model does not know "
                                                              "([[part]]: panels, antennas, user meshes) may block the "
                                                              "direct Sun: the check leaves that direct value out"}),
-            "direct_unchecked_window": (("time", "diode"), np.asarray(data.get("direct_unchecked_window",
-                                                                              np.zeros((n, k), bool)), np.int8),
+            "direct_unchecked_window": (("time", "diode"), np.asarray(data["direct_unchecked_window"], np.int8),
                                         {"units": "1", "long_name": "1 where a diode under a window may be shaded "
                                                                     "by the body (its light leaves the window "
                                                                     "shifted): also in direct_unchecked"}),
@@ -858,7 +863,9 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     native = np.zeros(ds["analytic"].shape[:2] + (2,))
     fine, native_mesh = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
     mesh, mesh_err = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
+    unchecked, unchecked_window = np.zeros(mesh.shape, bool), np.zeros(mesh.shape, bool)
     for s, e in chunk_ranges(n, chunk):
+        unchecked[s:e], unchecked_window[s:e] = study.direct_unchecked(slice(s, e))
         a = study.analytic(slice(s, e), study.map, mesh=True, box_albedo=True)
         native[s:e, :, 0], native[s:e, :, 1], native_mesh[s:e] = a.direct_w_m2, a.albedo_box_w_m2, a.albedo_w_m2
         a = study.analytic(slice(s, e), study.map_refined, direct=False, mesh=True)
@@ -872,6 +879,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
                              else np.full((ds.sizes["time"], ds.sizes["diode"], 3), np.nan)),
             "samples": ds["samples"].values, "analytic": native, "analytic_albedo_refined": fine,
             "analytic_albedo_native_mesh": native_mesh, "albedo_mesh": mesh, "albedo_visibility_error": mesh_err,
+            "direct_unchecked": unchecked, "direct_unchecked_window": unchecked_window,
             "valid": ds["valid"].values.astype(bool)}
     new, report = build_dataset(study, data, ds.attrs.get("variant", ""))
     new.attrs["software"] = ds.attrs["software"]          # the rendering's versions

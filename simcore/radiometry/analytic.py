@@ -260,7 +260,7 @@ def cell_runs(r_sat_m, sun_unit, refl):
 
 # ---- the albedo sums ---------------------------------------------------------------------
 def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None, visibility=None,
-                  box_sum=True):
+                  box_sum=True):  # (box_sum: the box-only sum costs one bincount here; always returned)
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy; with ``visibility`` (a
     :class:`DirectionVisibility`) also the same sum with its half-fine share, the sum of the well's
     response over its marked cells alone and the sum with the body box alone deciding everywhere (else
@@ -313,7 +313,6 @@ class _DrJitOps:
         self.where = dr.select
         self.sqrt, self.exp, self.log, self.floor = dr.sqrt, dr.exp, dr.log, dr.floor   # (the window's kernel)
         self.tiny = tiny
-        self.sqrt = dr.sqrt
         self.asin = dr.asin
 
 

@@ -33,6 +33,7 @@ class _NumpyOps:
     minimum = staticmethod(np.minimum)
     where = staticmethod(np.where)
     sqrt, exp, log, floor = staticmethod(np.sqrt), staticmethod(np.exp), staticmethod(np.log), staticmethod(np.floor)
+    asin = staticmethod(np.arcsin)
     tiny = 1e-300
 
 
