@@ -138,13 +138,14 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
     cfg = config if isinstance(config, SatelliteConfig) else SatelliteConfig.load(config)
     idx = check_request(cfg, diodes, plane, float(step_deg), samples, map_step_deg)
     all_ds = DiodeSurfaces.from_config(cfg)
-    # only the chosen diodes receive light; every part of the satellite (all mounts) still blocks it
-    ds = all_ds.subset(idx)
-    rend = Renderer(ds, build_satellite_mesh(cfg), e_sun_w_m2=1.0, variant=variant)
+    mesh = build_satellite_mesh(cfg)
     theta = np.arange(0.0, 90.0 + 1e-9, float(step_deg))
     d_local = _plane_directions(theta, plane)
     out = []
-    for j, k in enumerate(idx):
+    for k in idx:
+        # one diode at a time receives light (its own Sun sweep); every part of the satellite still blocks it
+        ds, j = all_ds.subset([k]), 0
+        rend = Renderer(ds, mesh, e_sun_w_m2=1.0, variant=variant)
         frame = ds.frames[j]
         res = rend.render(d_local @ frame, seed=seed, direct_samples=int(samples), albedo=False,
                           reflected_samples=reflected_samples)
