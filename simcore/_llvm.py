@@ -121,9 +121,29 @@ def host_array(cls, values):
     dr = import_drjit()
     dtype = np.dtype(_NUMPY_TYPES[dr.type_v(cls).name])
     a = np.asarray(values, dtype=dtype).reshape(-1)
-    nbytes = a.size * dtype.itemsize
-    raw = np.zeros(nbytes + 3 * _PACKET_BYTES, np.uint8)
-    start = -raw.ctypes.data % _PACKET_BYTES
-    out = raw[start:start + nbytes].view(dtype)
+    out = host_buffer(a.size, dtype)
     out[:] = a
     return cls(out)
+
+
+def host_buffer(n, dtype):
+    """Return an uninitialised numpy array of ``n`` elements of ``dtype`` in memory Dr.Jit's CPU kernels can read
+    safely (64-byte aligned, two packets of slack after its end; the note above), to be filled in place and
+    handed over by :func:`host_wrap` without another copy (e.g. lane index arrays of many MB)."""
+    dtype = np.dtype(dtype)
+    nbytes = int(n) * dtype.itemsize
+    raw = np.empty(nbytes + 3 * _PACKET_BYTES, np.uint8)
+    start = -raw.ctypes.data % _PACKET_BYTES
+    return raw[start:start + nbytes].view(dtype)
+
+
+def host_wrap(cls, buffer):
+    """Return the Dr.Jit array type ``cls`` holding ``buffer``, an array from :func:`host_buffer` (of the type's
+    dtype), without copying it."""
+    dr = import_drjit()
+    raw = buffer.base
+    if (buffer.dtype != np.dtype(_NUMPY_TYPES[dr.type_v(cls).name]) or buffer.ctypes.data % _PACKET_BYTES
+            or not isinstance(raw, np.ndarray) or raw.dtype != np.uint8
+            or raw.ctypes.data + raw.nbytes < buffer.ctypes.data + buffer.nbytes + 2 * _PACKET_BYTES):
+        raise ValueError("host_wrap takes an array from host_buffer (aligned, with slack) of the type's dtype")
+    return cls(buffer)

@@ -63,3 +63,24 @@ def test_host_array_copies_values_and_types():
     np.testing.assert_array_equal(_llvm.host_array(Float64, [0.1, 0.2]).numpy(), [0.1, 0.2])
     np.testing.assert_array_equal(_llvm.host_array(UInt32, np.array([3, 4])).numpy(), [3, 4])
     assert len(_llvm.host_array(mi.Float, np.zeros(0))) == 0
+
+
+def test_host_buffer_is_aligned_with_slack_and_host_wrap_refuses_other_arrays():
+    import numpy as np
+    import pytest
+    from simcore import _llvm
+    dr, mi = _llvm.import_drjit(), _llvm.import_mitsuba()
+    mi.set_variant("llvm_ad_mono")
+    from drjit.llvm import UInt32
+    for n in (1, 7, 1000, 4097):
+        b = _llvm.host_buffer(n, np.uint32)
+        assert b.shape == (n,) and b.dtype == np.uint32 and b.ctypes.data % 64 == 0
+        # two 64-byte packets of the same allocation after the end (what a kernel's last packet may read)
+        assert b.base.ctypes.data + b.base.nbytes >= b.ctypes.data + b.nbytes + 128
+        b[:] = np.arange(n, dtype=np.uint32) * 3
+        w = _llvm.host_wrap(UInt32, b)
+        assert np.array_equal(np.asarray((w + 1).numpy()), np.arange(n) * 3 + 1)
+    with pytest.raises(ValueError, match="host_buffer"):
+        _llvm.host_wrap(UInt32, np.arange(10, dtype=np.uint32))                 # not from host_buffer
+    with pytest.raises(ValueError, match="dtype"):
+        _llvm.host_wrap(mi.Float, _llvm.host_buffer(10, np.uint32))            # wrong type

@@ -78,7 +78,8 @@ none of this code runs: the kernels are the ones before windows existed.
 
 Sums are formed per (epoch, diode) in float64 in numpy from the per-lane
 float32 values. Random numbers come from ``mi.sample_tea_32`` keyed by
-(seed, global epoch index, diode, estimator, round, group): a given seed gives
+(seed, global epoch index, diode, estimator, round, group) and the lane's sample index (the direct and
+albedo kernels draw their further numbers from a PCG32 generator that it seeds): a given seed gives
 bitwise identical results whatever the batch split, so a resumed run
 reproduces (``epoch_offset``). With target accuracies (``rel_se_direct``,
 ``rel_se_albedo``) the diode-epochs that have not reached them (nor the
@@ -92,7 +93,7 @@ import numpy as np
 
 from scenes.materials import MaterialError, bsdf_dict, check_material, is_black
 from simcore import _llvm
-from simcore._llvm import host_array
+from simcore._llvm import host_array, host_buffer, host_wrap
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
 from simcore.environment.maps import named_map
 from simcore.shapes.aperture import disc_rectangle_overlap, lit_rectangle_of
@@ -548,18 +549,24 @@ class Renderer:
                            dr.gather(mi.Float, src.z, idx))
 
     def _rand(self, key, j, k):
-        """Return 2k uniform [0, 1) floats per lane from TEA(key, j*k + i)."""
+        """Return 2k uniform [0, 1) floats per lane: the two of TEA(key, j*k) (``_TEA_ROUNDS`` rounds: the lane's
+        numbers independent of its neighbours'), then 2k - 2 from a PCG32 generator that those two 32-bit words
+        seed (its state; one multiply-add a number instead of ~30 rounds of TEA)."""
         mi = self._mi
-        out = []
-        for i in range(k):
-            a, b = mi.sample_tea_32(key, j * k + i, _TEA_ROUNDS)
-            out += [mi.Float(a >> 8) * (1.0 / 16777216.0), mi.Float(b >> 8) * (1.0 / 16777216.0)]
+        a, b = mi.sample_tea_32(key, j * k, _TEA_ROUNDS)
+        out = [mi.Float(a >> 8) * (1.0 / 16777216.0), mi.Float(b >> 8) * (1.0 / 16777216.0)]
+        if k > 1:
+            rng = mi.PCG32()
+            rng.seed(initstate=(mi.UInt64(a) << 32) | mi.UInt64(b))
+            out += [mi.Float(rng.next_uint32() >> 8) * (1.0 / 16777216.0) for _ in range(2 * k - 2)]
         return out
 
-    def _blocked_by_mesh(self, o, d):
+    def _blocked_by_mesh(self, o, d, active=True):
+        """Return whether the ray from ``o`` along ``d`` meets the mesh; False for lanes not ``active`` (those
+        whose value cannot depend on it: their rays are not traced)."""
         if self._scene is None:
             return self._dr.zeros(self._mi.Bool, self._dr.width(o))
-        return self._scene.ray_test(self._mi.Ray3f(o, d))
+        return self._scene.ray_test(self._mi.Ray3f(o, d), active)
 
     # -- lanes: task k owns counts[k] consecutive lanes (its samples), split into launches
     def _launches(self, counts):
@@ -574,9 +581,14 @@ class Renderer:
                 stop = start + 2                  # keep >= 2 tasks: a 1-element array is a literal
             sl = slice(start, stop)
             c = counts[sl]
-            task = np.repeat(np.arange(len(c), dtype=np.uint32), c)
-            first = np.repeat(np.cumsum(c) - c, c)
-            j = (np.arange(len(task), dtype=np.int64) - first).astype(np.uint32)
+            n = int(c.sum())                                  # (a launch holds < 2^32 lanes)
+            task = host_buffer(n, np.uint32)
+            task[:] = 0
+            task[np.cumsum(c[:-1])] = 1                        # (counts >= 1) 1 at each later task's first lane
+            np.cumsum(task, out=task)
+            j = host_buffer(n, np.uint32)
+            j[:] = np.arange(n, dtype=np.uint32)
+            j -= np.repeat((np.cumsum(c) - c).astype(np.uint32), c)
             yield sl, task, j
             start = stop
 
@@ -591,8 +603,8 @@ class Renderer:
             sub = {k: (None if v is None else v[sl]) for k, v in t.items()}
             if sl.stop - sl.start < 2:
                 sub = _pad2(sub)
-            out.append(kernel(sub, host_array(self._mi.UInt32, task), host_array(self._mi.UInt32, j)).numpy())
-        return np.concatenate(out)
+            out.append(kernel(sub, host_wrap(self._mi.UInt32, task), host_wrap(self._mi.UInt32, j)).numpy())
+        return out[0] if len(out) == 1 else np.concatenate(out)
 
     # -- where the analytic well lets light through (aperture split, see _rounds)
     def _well_rect(self, t, task, d, key="ap"):
@@ -676,17 +688,17 @@ class Renderer:
         weight = dr.select(win, dr.select(K >= 0.0, 0.5 * tot, 0.0), 1.0)
         return dr.select(win, exit_, o), weight, dr.select(win, g_c, 0.0), win
 
-    def _through_window(self, t, task, o, d, fx, fy, u):
+    def _through_window(self, t, task, o, d, fx, fy, u, active=True):
         """Return (exit point, weight, blocked) for light reaching the diode point ``o`` (at fractions ``fx``,
         ``fy`` of its sides) from unit directions ``d`` (body frame) through the task's window, one uniform
         ``u`` per lane (:meth:`_window_exit`): blocked when the mesh meets the segment from ``o`` to the
         window's lower face or the ray leaving the upper face at the drawn exit point along ``d``. Tasks
         without a window get (o, 1, the plain ray's test)."""
         exit_, weight, seg, win = self._window_exit(t, task, o, d, fx, fy, u)
-        blocked = self._blocked_by_mesh(exit_, d)
+        blocked = self._blocked_by_mesh(exit_, d, active)
         if self._scene is not None:
             mi = self._mi
-            blocked |= self._scene.ray_test(mi.Ray3f(mi.Ray3f(o, d), seg), win & (seg > 0.0))
+            blocked |= self._scene.ray_test(mi.Ray3f(mi.Ray3f(o, d), seg), active & win & (seg > 0.0))
         return exit_, weight, blocked
 
     def _window_first_segment(self, scene, t, task, o, d, fx, fy, u):
@@ -763,23 +775,32 @@ class Renderer:
         fx, fy, wgt = self._split_point(t, task, d, fx, fy)
         o = (self._gather3(self._v3(t["pos"]), task) + fx * self._gather3(self._v3(t["U"]), task)
              + fy * self._gather3(self._v3(t["V"]), task))
-        if self._win is None:
-            blocked = self._blocked_by_mesh(o, d)
-        else:
-            a_, _ = mi.sample_tea_32(key ^ mi.UInt32(_WINDOW_KEY), j, _TEA_ROUNDS)
-            o, tw, blocked = self._through_window(t, task, o, d, fx, fy, mi.Float(a_ >> 8) * (1.0 / 16777216.0))
-            wgt = wgt * tw
-        cv = self._round_cv(t, task, d, fx, fy)
+        # (the rays of lanes that read 0 whatever they meet are not traced)
+        traced = wgt > 0
+        behind_earth = None
         if t["earth"] is not None:
             c = self._gather3(self._v3(t["earth"]), task)
             b = dr.dot(d, c)
             perp = c - b * d
             behind_earth = (b > 0) & (dr.squared_norm(perp) < dr.opaque(mi.Float, self.earth_radius_m ** 2))
+            traced &= ~behind_earth
+        if self.sun_angular_radius_rad > 0:
+            cos_nd = dr.dot(self._gather3(self._v3(t["n"]), task), d)
+            traced &= cos_nd > 0
+        if self._win is None:
+            blocked = self._blocked_by_mesh(o, d, traced)
+        else:
+            a_, _ = mi.sample_tea_32(key ^ mi.UInt32(_WINDOW_KEY), j, _TEA_ROUNDS)
+            o, tw, blocked = self._through_window(t, task, o, d, fx, fy, mi.Float(a_ >> 8) * (1.0 / 16777216.0),
+                                                  traced)
+            wgt = wgt * tw
+        cv = self._round_cv(t, task, d, fx, fy)
+        if behind_earth is not None:
             blocked |= behind_earth
             cv = dr.select(behind_earth, 0.0, cv)
         val = dr.select(blocked, 0.0, wgt) + cv
         if self.sun_angular_radius_rad > 0:
-            val = val * dr.maximum(dr.dot(self._gather3(self._v3(t["n"]), task), d), 0.0)
+            val = val * dr.maximum(cos_nd, 0.0)
         return val
 
     # -- albedo kernel
@@ -816,12 +837,13 @@ class Renderer:
         cos_d = dr.dot(g3("n"), d)
         rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
         hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot)
-        if self._win is None:
-            blocked = self._blocked_by_mesh(o, d)
-        else:
-            o, tw, blocked = self._through_window(t, task, o, d, fx, fy, r[5])
-            wgt = wgt * tw
         ok = hit & (cos_sun > 0) & (cos_d > 0)
+        # (the rays of lanes that read 0 whatever they meet are not traced)
+        if self._win is None:
+            blocked = self._blocked_by_mesh(o, d, ok & (wgt > 0))
+        else:
+            o, tw, blocked = self._through_window(t, task, o, d, fx, fy, r[5], ok & (wgt > 0))
+            wgt = wgt * tw
         f = dr.select(blocked, 0.0, wgt) + self._round_cv(t, task, d, fx, fy)
         # f / q with q = pmf_b / Omega_b, Omega_b = 2 pi xmax dt / N_P; L = rho E cos_sun / pi
         return dr.select(ok, f * rho * cos_sun * cos_d * (2.0 / _N_P) * xmax * dt / pmf, 0.0)
@@ -1354,13 +1376,20 @@ class Renderer:
         prop = dict(w=w, e1=e1, e2=e2, xmax=xmax, tedge=tedge, margin=margin)
         n_points = (_N_T + 1) * (_N_P + 1)
         f = self._trace_tasks(self._proposal_kernel, dict(t, **prop), n_points)
-        nc = (_N_T + 1) * (_N_P + 1)
-        fc = f[:, :nc].reshape(-1, _N_T + 1, _N_P + 1)
-        corner = np.maximum(np.maximum(fc[:, :-1, :-1], fc[:, 1:, :-1]), np.maximum(fc[:, :-1, 1:], fc[:, 1:, 1:]))
+        fc = f.reshape(-1, _N_T + 1, _N_P + 1)
+        corner = np.maximum(fc[:, :-1, :-1], fc[:, 1:, :-1])
+        np.maximum(corner, np.maximum(fc[:, :-1, 1:], fc[:, 1:, 1:]), out=corner)
         wbin = corner.reshape(len(f), -1)
         tot = wbin.sum(axis=1, keepdims=True)
-        omega = np.repeat(np.diff(tedge, axis=1) / _N_P, _N_P, axis=1)   # bin solid angle / cap's
-        pmf = np.where(tot > 0, (1 - _DEFENSIVE) * wbin / np.where(tot > 0, tot, 1.0) + _DEFENSIVE * omega, omega)
+        omega = np.diff(tedge, axis=1) / _N_P                   # (T, N_T): a bin's solid angle / the cap's
+        # (1 - D) wbin / tot + D omega where the proposal has weight, omega alone where it has none
+        pmf = np.empty(wbin.shape)
+        a = (1 - _DEFENSIVE) * wbin
+        a /= np.where(tot > 0, tot, 1.0)
+        np.add(a.reshape(-1, _N_T, _N_P), (_DEFENSIVE * omega)[:, :, None], out=pmf.reshape(-1, _N_T, _N_P))
+        empty = tot[:, 0] <= 0
+        if empty.any():
+            pmf[empty] = np.repeat(omega[empty], _N_P, axis=1)
         cdf = np.cumsum(pmf, axis=1)
         cdf /= cdf[:, -1:]
         cdf[:, -1] = 1.0
@@ -1818,13 +1847,17 @@ def _task_mean_var(vals, counts):
     """Return the mean (T,), the variance of the mean (T,) and the sum of the squares of its strata's
     terms (T,; for the effective degrees of freedom) of per-lane values laid out task after task
     (``counts`` each) as strata of two samples (float64)."""
-    v = vals.astype(np.float64)
-    starts = np.cumsum(counts) - counts
-    mean = np.add.reduceat(v, starts) / counts
-    dif = v[0::2] - v[1::2]
-    m = np.repeat(counts // 2, counts // 2)
-    q = dif * dif / (4.0 * m * m)
-    return mean, np.add.reduceat(q, starts // 2), np.add.reduceat(q * q, starts // 2)
+    # per stratum (a, b): the sum a + b and the squared difference (a - b)^2, in float64 (exact for float32 a, b);
+    # a task's m strata all have the term (a - b)^2 / (4 m^2), so its sums divide once
+    first = (np.cumsum(counts) - counts) // 2
+    a, b = vals[0::2], vals[1::2]
+    d2 = np.subtract(a, b, dtype=np.float64)
+    d2 *= d2
+    m = (counts // 2).astype(np.float64)
+    mean = np.add.reduceat(np.add(a, b, dtype=np.float64), first) / counts
+    var = np.add.reduceat(d2, first) / (4.0 * m * m)
+    d2 *= d2
+    return mean, var, np.add.reduceat(d2, first) / (16.0 * m ** 4)
 
 
 def _pad2(t):
