@@ -125,7 +125,8 @@ _REFLECTED_LANES = 1 << 20  # reflected paths gathered over epochs before a wave
 # (the estimator stays unbiased whatever the probes missed).
 _HIT_NT, _HIT_NP, _HIT_PROBES, _HIT_COSINE = 45, 128, 4, 0.1
 _MAX_MIRROR_PLANES = 32   # orientations of smooth-specular faces sampled toward the Sun's mirror image
-# Rounds of the TEA hash behind every random number. Mitsuba's default, 4, is meant for seeding: with it
+# Rounds of the TEA hash behind every random number (in the direct and albedo kernels: behind a lane's first two
+# and the PCG32 state that supplies the rest, Renderer._rand). Mitsuba's default, 4, is meant for seeding: with it
 # the two samples of a stratum (consecutive lanes) come out correlated and the pair estimate of the
 # variance reads ~8 % low (albedo z spread 1.09 over 4200 diode-epochs; 1.025 with 8 rounds, 1.006 with
 # 16, 0.995 with 32).
@@ -570,7 +571,10 @@ class Renderer:
 
     # -- lanes: task k owns counts[k] consecutive lanes (its samples), split into launches
     def _launches(self, counts):
-        """Yield (task slice, lane task index (np.uint32), lane sample index (np.uint32)) per launch."""
+        """Yield (task slice, lane task index (np.uint32), lane sample index (np.uint32)) per launch, for tasks of
+        ``counts`` (T,) >= 1 samples each (aligned host buffers for :func:`simcore._llvm.host_wrap`)."""
+        if len(counts) and counts.min() < 1:
+            raise ValueError(f"every task needs at least one sample, got counts down to {counts.min()}")
         ends = np.cumsum(counts)
         start = 0
         while start < len(counts):
@@ -693,7 +697,7 @@ class Renderer:
         ``fy`` of its sides) from unit directions ``d`` (body frame) through the task's window, one uniform
         ``u`` per lane (:meth:`_window_exit`): blocked when the mesh meets the segment from ``o`` to the
         window's lower face or the ray leaving the upper face at the drawn exit point along ``d``. Tasks
-        without a window get (o, 1, the plain ray's test)."""
+        without a window get (o, 1, the plain ray's test). Lanes not ``active`` trace neither ray (blocked False)."""
         exit_, weight, seg, win = self._window_exit(t, task, o, d, fx, fy, u)
         blocked = self._blocked_by_mesh(exit_, d, active)
         if self._scene is not None:
@@ -1387,7 +1391,7 @@ class Renderer:
         a = (1 - _DEFENSIVE) * wbin
         a /= np.where(tot > 0, tot, 1.0)
         np.add(a.reshape(-1, _N_T, _N_P), (_DEFENSIVE * omega)[:, :, None], out=pmf.reshape(-1, _N_T, _N_P))
-        empty = tot[:, 0] <= 0
+        empty = ~(tot[:, 0] > 0)                            # (NaN too: the uniform fallback, as before)
         if empty.any():
             pmf[empty] = np.repeat(omega[empty], _N_P, axis=1)
         cdf = np.cumsum(pmf, axis=1)
@@ -1847,8 +1851,8 @@ def _task_mean_var(vals, counts):
     """Return the mean (T,), the variance of the mean (T,) and the sum of the squares of its strata's
     terms (T,; for the effective degrees of freedom) of per-lane values laid out task after task
     (``counts`` each) as strata of two samples (float64)."""
-    # per stratum (a, b): the sum a + b and the squared difference (a - b)^2, in float64 (exact for float32 a, b);
-    # a task's m strata all have the term (a - b)^2 / (4 m^2), so its sums divide once
+    # per stratum (a, b): the sum a + b and the squared difference (a - b)^2, in float64; a task's m strata all
+    # have the term (a - b)^2 / (4 m^2), so its sums divide once (the same as summing lane by lane to ~1e-16)
     first = (np.cumsum(counts) - counts) // 2
     a, b = vals[0::2], vals[1::2]
     d2 = np.subtract(a, b, dtype=np.float64)
