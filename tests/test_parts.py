@@ -234,3 +234,67 @@ def test_the_body_box_shades_a_diode_on_a_wing_as_computed_by_hand(tmp_path):
     box = BodyBox.from_config(cfg)
     vis = pair_visibility(cfg.apertures, cfg.frames, box.positions_m, box.panel_normals, [k] * 3, d, box.half_m)
     np.testing.assert_allclose(vis, [1.0, 0.0, 0.5], atol=1e-9)
+
+
+MOUNT_SHADOW = """name = "mount_shadow"
+[[diode]]
+name = "bare"
+panel = "+z"
+normal = [0, 0, 1]
+at_mm = [0.0, 0.0]
+fov_deg = 90
+
+[[diode]]
+name = "tube"
+panel = "+z"
+normal = [0, 0, 1]
+at_mm = [8.0, 0.0]
+well = { height_mm = 8.0, opening_mm = [5.0, 5.0] }
+"""
+
+
+def _hits_box(origins, d, lo, hi):
+    """Return (N,) bool: whether rays from each of ``origins`` (P, 3) along the unit directions ``d`` (N, 3) meet the
+    axis-aligned box [lo, hi] at some t > 0 (slab test, any of the P origins)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (lo[None, None] - origins[None]) / d[:, None]
+        t2 = (hi[None, None] - origins[None]) / d[:, None]
+    t_in = np.nanmax(np.minimum(t1, t2), axis=2)
+    t_out = np.nanmin(np.maximum(t1, t2), axis=2)
+    return ((t_in <= t_out) & (t_out > 0)).any(axis=1)
+
+
+def test_a_neighbours_mount_shading_a_diode_is_left_out_of_the_direct_check(tmp_path):
+    # A bare diode flat at the centre of the +z face (2.65 mm square, surface 114.5 mm above the body's centre)
+    # and 8 mm along +x a diode in a well 8 mm tall: its mount, by hand from the TOML (opening 5 mm, walls 0.5 mm,
+    # floor 0.5 mm above a 0.5 mm base on the 113.5 mm face), is the box x 5..11, y -3..3, z 113.5..122.5 mm. The
+    # analytic model knows the body box and each diode's own well, not a neighbour's mount: the bare diode's
+    # direct Sun behind the tube read 0 against ~100 W/m^2 analytic and failed the check (-6329 sigma).
+    path = tmp_path / "ms.toml"
+    path.write_text(MOUNT_SHADOW)
+    run = tmp_path / "ms.nc"
+    assert main(["run", "--config", str(path), "--start", "2016-07-02T00:45:00Z", "--duration", "1800",
+                 "--step", "5", "-o", str(run)]) == 0                      # the check passes
+    ds = xr.open_dataset(run)
+    unchecked = ds["direct_unchecked"].values.astype(bool)
+    sun = ds["sun_dir_body"].values
+    # Oracle, the geometry: rays toward the Sun's centre from the bare diode's corners and centre that meet the
+    # tube's box: every such epoch is left out (the Sun is at most 0.27 deg from its centre: also the rim).
+    f = np.array([-1.0, 0.0, 1.0]) * 1.3247e-3
+    pts = np.array([[x, y, 114.5e-3] for x in f for y in f])
+    shaded = _hits_box(pts, sun, np.array([5e-3, -3e-3, 114.5e-3]), np.array([11e-3, 3e-3, 122.5e-3]))
+    shaded &= sun[:, 2] > 0
+    assert shaded.sum() >= 20                                  # the segment does take the Sun behind the tube
+    assert np.all(unchecked[shaded, 0])
+    # ...and nothing is left out where the Sun lies on the far side (toward -x: nothing stands there), nor for
+    # the diode in the tube (nothing rises above its well's rim)
+    assert not unchecked[sun[:, 0] < -0.05, 0].any() and (sun[:, 0] < -0.05).sum() >= 20
+    assert not unchecked[:, 1].any()
+    _, report = check_run(ds)
+    assert report["pass"] and report["direct_unchecked"] == int(unchecked[ds["valid"].values.astype(bool)].sum())
+    # Without leaving them out, the neighbour's shadow (which the analytic model does not know) fails the check.
+    forged = ds.copy()
+    forged["direct_unchecked"] = forged["direct_unchecked"] * 0
+    _, bad = check_run(forged)
+    assert not bad["pass"]
+    assert any(t["component"] == "direct" and not t["passed"] for t in bad["tests"])

@@ -238,8 +238,8 @@ def describe(report):
         win = report.get("direct_unchecked_window", 0)
         other = report["direct_unchecked"] - win
         reasons = ([f"{other} where a part the analytic model does not know ([[part]]: panels, antennas, user "
-                    f"meshes) may shade the Sun, or the body box a round well's diode (its shadow is clipped "
-                    f"against rectangles only)"] if other > 0 else []) + \
+                    f"meshes; another diode's mount) may shade the Sun, or the body box a round well's diode (its "
+                    f"shadow is clipped against rectangles only)"] if other > 0 else []) + \
                   ([f"{win} where the body may shade a diode under a window (the light leaves the window shifted: "
                     f"no exact reference)"] if win else [])
         lines.append(f"  direct: {report['direct_unchecked']} diode-epochs left out: {'; '.join(reasons)}")

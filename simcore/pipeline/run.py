@@ -248,6 +248,68 @@ class PreparedRun:
             out[e, k] = hit.reshape(e.size, 9 * 17).any(axis=1)
         return out
 
+    @functools.cached_property
+    def mount_shaded_directions(self):
+        """Return (K, 90, 180) bool, or None where there is none: per diode, the cells of its direction grid
+        (``Renderer.direction_grid``) in which another diode's mount (ramp, floor plate, well, plug) meets some of
+        the probe rays of ``Renderer.blocked_share`` from the part of the diode its own well lights: a shadow the
+        analytic direct model (the body box and the diode's own well) does not know. Widened by one cell all
+        round, as :attr:`shaded_directions`. Only cells where the whole mesh blocks some probe are probed, each
+        diode's against the others' mounts (its own well's walls, which its lit part's probes may graze at the
+        horizon in float32, are the analytic model's)."""
+        import trimesh
+        from scenes.meshes import build_parts
+        if self.config.n_diodes < 2:
+            return None
+        where = np.nan_to_num(self.renderer.blocked_share(), nan=0.0) > 0    # (the renderer sets Mitsuba's variant)
+        mi = _llvm.import_mitsuba()
+        mounts = {name: m for name, m in build_parts(self.config).items() if name != "body" and not name.startswith("part_")}
+
+        def hit(scene, where):
+            return np.nan_to_num(self.renderer.probe_share(scene, where), nan=0.0) > 0
+        # every mount first (one scene), then the diodes some probe met again without their own mount
+        cell = hit(occluder_scene(trimesh.util.concatenate(list(mounts.values())), mi), where)
+        for k in np.flatnonzero(cell.any(axis=(1, 2))):
+            others = [m for name, m in mounts.items() if name.rsplit("_", 1)[1] != str(k)]
+            only = np.zeros_like(cell)
+            only[k] = cell[k]
+            cell[k] = hit(occluder_scene(trimesh.util.concatenate(others), mi), only)[k]
+        if not cell.any():
+            return None
+        grown = cell.copy()
+        grown[:, 1:] |= cell[:, :-1]
+        grown[:, :-1] |= cell[:, 1:]
+        return grown | np.roll(grown, 1, axis=2) | np.roll(grown, -1, axis=2)
+
+    def mounts_shadow(self, sl):
+        """Return (n, K) bool: the diode-epochs of ``sl`` whose direct Sun another diode's mount may block, which the
+        analytic model does not know: the Sun's centre or one of 16 points on its rim lies in a cell of
+        :attr:`mount_shaded_directions`. The check leaves their direct Sun out (counted, with the reason)."""
+        g, cfg = self.geometry, self.config
+        n, K = sl.stop - sl.start, cfg.n_diodes
+        cells = self.mount_shaded_directions
+        if cells is None:
+            return np.zeros((n, K), bool)
+        s = g.sun_dir_body[sl]
+        ok = np.all(np.isfinite(s), axis=1)
+        s = np.where(ok[:, None], s, [[0.0, 0.0, 1.0]])                 # (invalid epochs: any direction, masked)
+        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
+        ang = 2 * np.pi * np.arange(16) / 16
+        offsets = np.vstack([[0.0, 0.0], a * np.column_stack([np.cos(ang), np.sin(ang)])])
+        dirs = disc_directions(s, offsets)                                              # (17, n, 3)
+        nt, nph = cells.shape[1:]
+        out = np.zeros((n, K), bool)
+        for k, frame in enumerate(np.asarray(cfg.frames)):
+            if not cells[k].any():
+                continue
+            local = dirs @ frame.T                                                      # (17, n, 3): u, v, n
+            front = local[..., 2] > 0
+            theta = np.arccos(np.clip(local[..., 2], -1.0, 1.0))
+            i = np.minimum((theta * (nt / (0.5 * np.pi))).astype(int), nt - 1)
+            j = ((np.arctan2(local[..., 1], local[..., 0]) + np.pi) * (nph / (2.0 * np.pi))).astype(int) % nph
+            out[:, k] = (front & cells[k][np.where(front, i, 0), j]).any(axis=0) & ok
+        return out
+
     def round_well_shadow(self, sl):
         """Return (n, K) bool: the diode-epochs of ``sl`` of round wells (``CircularWell``) whose direct Sun the
         body box may shade: part of the solar disc at or below the plane of the diode's panel and part of it in
@@ -351,10 +413,10 @@ class PreparedRun:
 
     def direct_unchecked(self, sl):
         """Return ((n, K) bool, (n, K) bool): the diode-epochs of ``sl`` whose direct Sun the check leaves out
-        (a part, a window under the body's shadow or a round well under it may shade it: no exact reference),
-        and those of them that are a window's."""
+        (a part, another diode's mount, a window under the body's shadow or a round well under it may shade it: no
+        exact reference), and those of them that are a window's."""
         window = self.window_shadow(sl)
-        return self.parts_shadow(sl) | window | self.round_well_shadow(sl), window
+        return self.parts_shadow(sl) | self.mounts_shadow(sl) | window | self.round_well_shadow(sl), window
 
     def window_shadow(self, sl):
         """Return (n, K) bool: the diode-epochs of ``sl`` with a window over the diode whose direct Sun the body box
@@ -553,8 +615,9 @@ def build_dataset(study, data, variant):
                                                                   "visible share (its grid made twice as coarse)"}),
             "direct_unchecked": (("time", "diode"), np.asarray(data["direct_unchecked"], np.int8),
                                  {"units": "1", "long_name": "1 where a part the analytic model does not know "
-                                                             "([[part]]: panels, antennas, user meshes) may block the "
-                                                             "direct Sun: the check leaves that direct value out"}),
+                                                             "([[part]]: panels, antennas, user meshes; another "
+                                                             "diode's mount) may block the direct Sun: the check "
+                                                             "leaves that direct value out"}),
             "direct_unchecked_window": (("time", "diode"), np.asarray(data["direct_unchecked_window"], np.int8),
                                         {"units": "1", "long_name": "1 where a diode under a window may be shaded "
                                                                     "by the body (its light leaves the window "

@@ -1201,8 +1201,15 @@ class Renderer:
 
         The check compares it with the analytic model's picture of the same directions to tell which
         albedo diode-epochs its reference covers (``simcore.pipeline.run``)."""
-        if getattr(self, "_blocked", None) is not None:
-            return self._blocked
+        if getattr(self, "_blocked", None) is None:
+            self._blocked = self.probe_share(self._scene)
+        return self._blocked
+
+    def probe_share(self, scene, where=None):
+        """Return (K, 90, 180): the share of :meth:`blocked_share`'s probe rays that the occluder ``scene``
+        (:func:`occluder_scene`; None: nothing) blocks, in the cells of ``where`` (K, 90, 180) bool (default:
+        all), 0 in the others; NaN where the diode's own well lights nothing (zeros for a diode with no cell
+        in ``where``: not computed)."""
         K = self.diodes.count
         th, ph = self.direction_grid()
         TH, PH = np.meshgrid(th, ph, indexing="ij")
@@ -1210,6 +1217,8 @@ class Renderer:
         out = np.zeros((K, _VIS_NT, _VIS_NP))
         jobs = []
         for k in range(K):
+            if where is not None and not where[k].any():
+                continue
             if self.control_variate:
                 x0, x1, y0, y1, lit = lit_rectangle_of(self._ap_params[k], local[..., 0], local[..., 1], local[..., 2])
             else:
@@ -1217,12 +1226,14 @@ class Renderer:
                 x1, y1, lit = -x0, -y0, np.ones(TH.shape)
             ok = (lit > 0) & (x1 - x0 > 2e-3) & (y1 - y0 > 2e-3)
             out[k][~ok] = np.nan
-            if self._scene is not None and ok.any():
+            if where is not None:
+                ok &= where[k]
+            if scene is not None and ok.any():
                 jobs.append((k, ok, np.stack([x0[ok], x1[ok], y0[ok], y1[ok]], -1), local[ok] @ self.diodes.frames[k]))
         if jobs:
             blocked = self._blocked_share_of(
                 np.concatenate([np.full(int(job[1].sum()), job[0]) for job in jobs]), np.concatenate([job[2] for job in jobs]),
-                np.concatenate([job[3] for job in jobs]), [1e-3, 0.5, 1.0 - 1e-3])
+                np.concatenate([job[3] for job in jobs]), [1e-3, 0.5, 1.0 - 1e-3], scene=scene)
             start = 0
             for k, ok, rect, d_body in jobs:
                 n = int(ok.sum())
@@ -1234,8 +1245,7 @@ class Renderer:
                     # first term's exit points too, so that a shadow the shift moves is marked as well
                     shift = self._window_shift(k, win, d_body, 0)
                     out[k][ok] = 0.5 * (out[k][ok] + self._blocked_share_of(
-                        np.full(n, k), rect, d_body, [1e-3, 0.5, 1.0 - 1e-3], shift))
-        self._blocked = out
+                        np.full(n, k), rect, d_body, [1e-3, 0.5, 1.0 - 1e-3], shift, scene=scene))
         return out
 
     def visible_share(self, mask, sub=4, points=8):
@@ -1325,12 +1335,13 @@ class Renderer:
             den[on] += w
         return np.where(den > 0, num / np.where(den > 0, den, 1.0), 1.0)
 
-    def _blocked_share_of(self, diode, rect, d_body, grid, shift=None):
+    def _blocked_share_of(self, diode, rect, d_body, grid, shift=None, scene=None):
         """Return (M,): for M (diode index, lit rectangle (x0, x1, y0, y1) in fractions of the diode's sides,
         centred, body-frame direction) the share of the rectangle's points at fractions ``grid`` (P,) of its
         sides along x times the same along y (P x P points) whose ray toward the direction the mesh blocks;
         one Dr.Jit launch, the points made and their hits summed in the kernel. ``shift`` (M, 3): body-frame
-        offsets of the rays' origins from those points (where the light leaves a window's upper face)."""
+        offsets of the rays' origins from those points (where the light leaves a window's upper face). ``scene``:
+        the occluders (default: the mesh's)."""
         dr, mi = self._dr, self._mi
         P = len(grid)
         P2 = P * P
@@ -1350,7 +1361,7 @@ class Renderer:
         if shift is not None:
             o = o + self._gather3(self._v3(shift), m)
         d = self._gather3(self._v3(d_body), m)
-        hit = self._scene.ray_test(mi.Ray3f(o, d))
+        hit = (self._scene if scene is None else scene).ray_test(mi.Ray3f(o, d))
         blocked = dr.block_sum(dr.select(hit, 1.0, 0.0), P2)
         return np.asarray(blocked.numpy(), dtype=float) / P2
 
