@@ -136,6 +136,11 @@ _MAX_LANES = 1 << 22      # lanes per launch (memory bound, ~100 MB of temporari
 # probe rays toward the disc's centre and this many points on its rim, and this many times the samples.
 _PROBE_RIM = 32
 _EDGE_BOOST = 16
+# Lanes: each task's rays start on a multiple of this (Dr.Jit's CPU packets and Embree's ray packets hold at most 16
+# rays), so that no packet mixes two tasks' rays. Embree's packet traversal can decide a ray that grazes an edge
+# differently with other rays beside it (seen: 1 lane of 28 224 flipped with the epochs batched together, moving its
+# diode-epoch by 0.02 %); a task's values then depended on the batch, and a run resumed with another --chunk on them.
+_PACKET = 16
 _WINDOW_KEY = 0x5BD1E995   # xor-ed into a lane's key: the window's own random numbers (the kernels' stay as they were)
 
 
@@ -597,18 +602,24 @@ class Renderer:
             start = stop
 
     def _trace(self, kernel, t, counts):
-        """Return the per-lane values (sum(counts),) float32 of ``kernel`` over tasks ``t``."""
+        """Return the per-lane values (sum(counts),) float32 of ``kernel`` over tasks ``t`` (their lanes laid out task
+        after task, each task's first lane on a multiple of ``_PACKET``)."""
         T = len(counts)
         if T < 2:                                 # a 1-element array would be baked in as a literal
             t = _pad2(t)
             return self._trace(kernel, t, np.concatenate([counts, [2]]))[:int(counts.sum())]
+        # each task's lanes start on a packet boundary (the extra lanes, samples past its count, are dropped)
+        padded = -(-counts // _PACKET) * _PACKET
         out = []
-        for sl, task, j in self._launches(counts):
+        for sl, task, j in self._launches(padded):
             sub = {k: (None if v is None else v[sl]) for k, v in t.items()}
             if sl.stop - sl.start < 2:
                 sub = _pad2(sub)
             out.append(kernel(sub, host_wrap(self._mi.UInt32, task), host_wrap(self._mi.UInt32, j)).numpy())
-        return out[0] if len(out) == 1 else np.concatenate(out)
+        vals = out[0] if len(out) == 1 else np.concatenate(out)
+        if np.array_equal(padded, counts):
+            return vals
+        return vals[np.repeat(np.tile([True, False], len(counts)), np.column_stack([counts, padded - counts]).ravel())]
 
     # -- where the analytic well lets light through (aperture split, see _rounds)
     def _well_rect(self, t, task, d, key="ap"):
@@ -1794,8 +1805,12 @@ class Renderer:
             o = np.concatenate([o, o + shift[:, :, None]], axis=2)
             d = np.concatenate([d, d], axis=2)
             P = 2 * P
+        # each task's rays padded to whole packets (_PACKET) with copies of its last one
+        n = D * P
+        pad = np.minimum(np.arange(-(-n // _PACKET) * _PACKET), n - 1)
+        o, d = o.reshape(T, n, 3)[:, pad], d.reshape(T, n, 3)[:, pad]
         ray = mi.Ray3f(self._v3(o.reshape(-1, 3)), self._v3(d.reshape(-1, 3)))
-        blocked = np.asarray(self._scene.ray_test(ray).numpy(), bool).reshape(T, D, P)
+        blocked = np.asarray(self._scene.ray_test(ray).numpy(), bool).reshape(T, len(pad))[:, :n].reshape(T, D, P)
         seen = np.broadcast_to(((lit > 0) & (x1 - x0 > 2 * inset) & (y1 - y0 > 2 * inset))[..., None], blocked.shape)
         some = (blocked & seen).any(axis=(1, 2))
         free = (~blocked & seen).any(axis=(1, 2))
