@@ -87,6 +87,18 @@ def test_bad_parts_are_one_line_errors_before_any_output(tmp_path, config_refuse
     config_refused(path, words)
 
 
+def _passes_only_with_its_left_out_values(ds, unchecked):
+    """Assert that the run ``ds`` passes its check, which counts the left-out direct values ``unchecked`` (time,
+    diode), and fails the direct tests when they are put back in."""
+    _, report = check_run(ds)
+    assert report["pass"] and report["direct_unchecked"] == int(unchecked[ds["valid"].values.astype(bool)].sum())
+    forged = ds.copy()
+    forged["direct_unchecked"] = forged["direct_unchecked"] * 0
+    _, bad = check_run(forged)
+    assert not bad["pass"]
+    assert any(t["component"] == "direct" and not t["passed"] for t in bad["tests"])
+
+
 def test_3u_wings_shade_and_reflect_and_the_check_leaves_their_shadows_out(tmp_path, capsys):
     path = tmp_path / "u3.nc"
     rc = main(["run", "--config", str(EXAMPLES / "cubesat3u_panels.toml"), "--start", "2016-07-02T00:45:00Z",
@@ -104,14 +116,8 @@ def test_3u_wings_shade_and_reflect_and_the_check_leaves_their_shadows_out(tmp_p
         assert np.all(refl[:, k] == 0), names[k]            # these see no part of the spacecraft
     unchecked = ds["direct_unchecked"].values.astype(bool)
     assert unchecked[:, faced].any() and not unchecked[:, names.index("+x")].any()
-    _, report = check_run(ds)
-    assert report["pass"] and report["direct_unchecked"] == int(unchecked[ds["valid"].values.astype(bool)].sum())
     # Without leaving them out, the wing shadows (which the analytic model does not know) fail the direct check.
-    forged = ds.copy()
-    forged["direct_unchecked"] = forged["direct_unchecked"] * 0
-    _, bad = check_run(forged)
-    assert not bad["pass"]
-    assert any(t["component"] == "direct" and not t["passed"] for t in bad["tests"])
+    _passes_only_with_its_left_out_values(ds, unchecked)
     # Recomputing the analytic model keeps the same left-out diode-epochs (it lost them once: then it failed)
     ds.close()
     assert main(["validate", str(path), "--recompute-analytic"]) == 0
@@ -290,11 +296,5 @@ def test_a_neighbours_mount_shading_a_diode_is_left_out_of_the_direct_check(tmp_
     # the diode in the tube (nothing rises above its well's rim)
     assert not unchecked[sun[:, 0] < -0.05, 0].any() and (sun[:, 0] < -0.05).sum() >= 20
     assert not unchecked[:, 1].any()
-    _, report = check_run(ds)
-    assert report["pass"] and report["direct_unchecked"] == int(unchecked[ds["valid"].values.astype(bool)].sum())
     # Without leaving them out, the neighbour's shadow (which the analytic model does not know) fails the check.
-    forged = ds.copy()
-    forged["direct_unchecked"] = forged["direct_unchecked"] * 0
-    _, bad = check_run(forged)
-    assert not bad["pass"]
-    assert any(t["component"] == "direct" and not t["passed"] for t in bad["tests"])
+    _passes_only_with_its_left_out_values(ds, unchecked)

@@ -216,22 +216,30 @@ class PreparedRun:
                                          for p in self.config.parts])
         return occluder_scene(mesh, _llvm.import_mitsuba())
 
+    def _sun_disc_probes(self, sl):
+        """Return (dirs (17, n, 3), s (n, 3), ok (n,), a): for the epochs of ``sl``, the unit body directions toward
+        the Sun's centre and 16 points just outside its rim (at ``a``, its angular radius x 1.001, rad), the Sun's
+        direction and which epochs are finite (the others get any direction, to be masked): the probes of the
+        shadow rules below."""
+        s = self.geometry.sun_dir_body[sl]
+        ok = np.all(np.isfinite(s), axis=1)
+        s = np.where(ok[:, None], s, [[0.0, 0.0, 1.0]])
+        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
+        ang = 2 * np.pi * np.arange(16) / 16
+        offsets = np.vstack([[0.0, 0.0], a * np.column_stack([np.cos(ang), np.sin(ang)])])
+        return disc_directions(s, offsets), s, ok, a
+
     def parts_shadow(self, sl):
         """Return (n, K) bool: the diode-epochs of ``sl`` whose direct Sun a part of the configuration other than
         the body box and the mounts ([[part]]: panels, antennas, user meshes) may block, which the analytic
         model does not know: a ray from any of 3 x 3 points over the diode toward the Sun's centre or 16 points
         on its rim meets such a part. The check leaves their direct Sun out (counted, with the reason)."""
-        g, cfg = self.geometry, self.config
+        cfg = self.config
         n, K = sl.stop - sl.start, cfg.n_diodes
         if self._parts_scene is None:
             return np.zeros((n, K), bool)
-        s = g.sun_dir_body[sl]
-        ok = np.all(np.isfinite(s), axis=1)
-        s = np.where(ok[:, None], s, [[0.0, 0.0, 1.0]])                 # (invalid epochs: any direction, masked)
-        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
-        ang = 2 * np.pi * np.arange(16) / 16
-        offsets = np.vstack([[0.0, 0.0], a * np.column_stack([np.cos(ang), np.sin(ang)])])
-        dirs = np.swapaxes(disc_directions(s, offsets), 0, 1)                      # (n, 17, 3)
+        dirs, s, ok, a = self._sun_disc_probes(sl)
+        dirs = np.swapaxes(dirs, 0, 1)                                                  # (n, 17, 3)
         f = np.linspace(-0.5, 0.5, 3)
         F = np.asarray(cfg.frames)
         sizes = np.array([[d.aperture.diode_x_m, d.aperture.diode_y_m] for d in cfg.diodes])
@@ -285,18 +293,12 @@ class PreparedRun:
         """Return (n, K) bool: the diode-epochs of ``sl`` whose direct Sun another diode's mount may block, which the
         analytic model does not know: the Sun's centre or one of 16 points on its rim lies in a cell of
         :attr:`mount_shaded_directions`. The check leaves their direct Sun out (counted, with the reason)."""
-        g, cfg = self.geometry, self.config
+        cfg = self.config
         n, K = sl.stop - sl.start, cfg.n_diodes
         cells = self.mount_shaded_directions
         if cells is None:
             return np.zeros((n, K), bool)
-        s = g.sun_dir_body[sl]
-        ok = np.all(np.isfinite(s), axis=1)
-        s = np.where(ok[:, None], s, [[0.0, 0.0, 1.0]])                 # (invalid epochs: any direction, masked)
-        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
-        ang = 2 * np.pi * np.arange(16) / 16
-        offsets = np.vstack([[0.0, 0.0], a * np.column_stack([np.cos(ang), np.sin(ang)])])
-        dirs = disc_directions(s, offsets)                                              # (17, n, 3)
+        dirs, _, ok, _ = self._sun_disc_probes(sl)
         nt, nph = cells.shape[1:]
         out = np.zeros((n, K), bool)
         for k, frame in enumerate(np.asarray(cfg.frames)):
@@ -423,19 +425,13 @@ class PreparedRun:
         may shade: part of the solar disc (its centre or 16 rim points) lies in front of the diode and below its
         panel's plane. There the light leaves the window shifted along its path, which moves the box's shadow:
         the analytic model has no exact reference, and the check leaves that direct value out (counted)."""
-        g, cfg = self.geometry, self.config
+        cfg = self.config
         n, K = sl.stop - sl.start, cfg.n_diodes
         out = np.zeros((n, K), bool)
         idx = [k for k, w in enumerate(cfg.windows) if w is not None]
         if not idx:
             return out
-        s = g.sun_dir_body[sl]
-        ok = np.all(np.isfinite(s), axis=1)
-        s = np.where(ok[:, None], s, [[0.0, 0.0, 1.0]])
-        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
-        ang = 2 * np.pi * np.arange(16) / 16
-        offsets = np.vstack([[0.0, 0.0], a * np.column_stack([np.cos(ang), np.sin(ang)])])
-        dirs = disc_directions(s, offsets)                                              # (17, n, 3)
+        dirs, _, ok, _ = self._sun_disc_probes(sl)
         box = BodyBox.from_config(cfg)
         for k in idx:
             front = dirs @ cfg.diodes[k].normal_body > 0
