@@ -197,6 +197,14 @@ def test_wall_material_misuse_raises():
         A.angular_cuts(AP70, materials=[{"reflectance": 0.2}])
     with pytest.raises(ValueError, match="unit vectors"):
         A.wall_response(AP70, [[0.0, 0.0, 2.0]], "black")
+    # a renderer made for other walls: its response would be filed under the wrong material (it was, silently)
+    r = A.well_renderer(AP70, "aluminium")
+    assert r.materials["well"] == "aluminium" and r.materials["floor"] == "aluminium"
+    with pytest.raises(ValueError, match="'aluminium' and 'aluminium', not the 'black' and 'black'"):
+        A.wall_response(AP70, [[0.0, 0.0, 1.0]], "black", renderer=r)
+    with pytest.raises(ValueError, match="not the 'aluminium' and 'black'"):
+        A.wall_response(AP70, [[0.0, 0.0, 1.0]], "aluminium", floor_material="black", renderer=r)
+    assert A.wall_response(AP70, [[0.0, 0.0, 1.0]], "aluminium", samples=256, renderer=r).material == "aluminium"
 
 
 # ----------------------------------------------------------------------------- figures and design

@@ -425,6 +425,7 @@ class Renderer:
             raise ValueError(f"max_depth must be >= 1 spacecraft vertex, got {max_depth}")
         self.max_depth = int(max_depth)
         self._mirror_normals = None
+        self.materials = {}          # part name -> material of the mesh's parts (_build_pt_scene)
         self._pt = self._build_pt_scene(occluder_mesh)
         self._diode_f32 = self._diode_arrays()
         # Aperture hint for the albedo sampling (WellAperture.rims: half diode x/y, half opening x/y and
@@ -472,6 +473,7 @@ class Renderer:
             parts = [("mesh", (0, nf), meta.get("material", "black"))]
         for name, _, spec in parts:
             check_material(spec, f"part {name!r}")
+        self.materials = {name: spec for name, _, spec in parts}
         if all(is_black(spec) for _, _, spec in parts):
             return None
         mi = self._mi
@@ -506,7 +508,7 @@ class Renderer:
         a cell's weight is cos x solid angle x the largest share of probe rays (``_HIT_PROBES`` squared points
         on the diode toward the cell's centre) that meet the mesh in it and its 8 neighbours; a diode whose
         probes meet nothing samples cosine-weighted only (beta 1)."""
-        mi, dr = self._mi, self._dr
+        mi = self._mi
         K = self.diodes.count
         th_e = np.linspace(0.0, 0.5 * np.pi, _HIT_NT + 1)
         th = 0.5 * (th_e[:-1] + th_e[1:])

@@ -217,6 +217,11 @@ def wall_response(aperture, d_diode, material, *, samples=16384, seed=0, floor_m
     """
     d = _unit_directions(d_diode)
     check_material(material, "wall material")
+    floor = material if floor_material is None else floor_material
+    if renderer is not None and (renderer.materials.get("well") != material or renderer.materials.get("floor") != floor):
+        raise ValueError(f"the renderer's walls and floor are {renderer.materials.get('well')!r} and "
+                         f"{renderer.materials.get('floor')!r}, not the {material!r} and {floor!r} asked for: pass "
+                         "the renderer well_renderer made for these materials, or none")
     r = well_renderer(aperture, material, floor_material, variant=variant) if renderer is None else renderer
     m = len(d)
     out = {k: np.zeros(m) for k in ("direct", "direct_se", "reflected", "reflected_se")}
@@ -227,8 +232,8 @@ def wall_response(aperture, d_diode, material, *, samples=16384, seed=0, floor_m
         out["direct"][front], out["direct_se"][front] = res.direct_w_m2[:, 0], res.direct_se_w_m2[:, 0]
         out["reflected"][front], out["reflected_se"][front] = res.reflected_w_m2[:, 0], res.reflected_se_w_m2[:, 0]
     return WallResponse(d, out["direct"] + out["reflected"], np.hypot(out["direct_se"], out["reflected_se"]),
-                        out["direct"], out["direct_se"], out["reflected"], out["reflected_se"], material,
-                        material if floor_material is None else floor_material, int(samples), int(seed))
+                        out["direct"], out["direct_se"], out["reflected"], out["reflected_se"], material, floor,
+                        int(samples), int(seed))
 
 
 def octant_grid(theta_step_deg=2.0, phi_step_deg=7.5):
