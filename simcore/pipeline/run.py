@@ -32,7 +32,7 @@ from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irra
 from simcore.shapes.aperture import CircularWell
 from simcore.shapes.occlusion import box_hit
 from simcore.shapes.window import WindowedWell
-from simcore.render.irradiance import DiodeSurfaces, Renderer, occluder_scene, rays_blocked
+from simcore.render.irradiance import DiodeSurfaces, Renderer, occluder_scene, rays_blocked, widen_cells
 
 from simcore import _llvm
 from simcore._version import __version__
@@ -282,12 +282,7 @@ class PreparedRun:
             only = np.zeros_like(cell)
             only[k] = cell[k]
             cell[k] = hit(occluder_scene(trimesh.util.concatenate(others), mi), only)[k]
-        if not cell.any():
-            return None
-        grown = cell.copy()
-        grown[:, 1:] |= cell[:, :-1]
-        grown[:, :-1] |= cell[:, 1:]
-        return grown | np.roll(grown, 1, axis=2) | np.roll(grown, -1, axis=2)
+        return widen_cells(cell) if cell.any() else None
 
     def mounts_shadow(self, sl):
         """Return (n, K) bool: the diode-epochs of ``sl`` whose direct Sun another diode's mount may block, which the
@@ -299,17 +294,13 @@ class PreparedRun:
         if cells is None:
             return np.zeros((n, K), bool)
         dirs, _, ok, _ = self._sun_disc_probes(sl)
-        nt, nph = cells.shape[1:]
         out = np.zeros((n, K), bool)
         for k, frame in enumerate(np.asarray(cfg.frames)):
             if not cells[k].any():
                 continue
             local = dirs @ frame.T                                                      # (17, n, 3): u, v, n
-            front = local[..., 2] > 0
-            theta = np.arccos(np.clip(local[..., 2], -1.0, 1.0))
-            i = np.minimum((theta * (nt / (0.5 * np.pi))).astype(int), nt - 1)
-            j = ((np.arctan2(local[..., 1], local[..., 0]) + np.pi) * (nph / (2.0 * np.pi))).astype(int) % nph
-            out[:, k] = (front & cells[k][np.where(front, i, 0), j]).any(axis=0) & ok
+            i, j = Renderer.direction_cell(local)
+            out[:, k] = ((local[..., 2] > 0) & cells[k][i, j]).any(axis=0) & ok
         return out
 
     def round_well_shadow(self, sl):
@@ -358,10 +349,7 @@ class PreparedRun:
         for k, frame in enumerate(np.asarray(self.config.frames)):
             model = box_hit(box.positions_m[k], local @ frame, box.half_m).astype(float)
             cell = np.isfinite(share[k]) & (share[k] != model)
-            grown = cell.copy()
-            grown[1:] |= cell[:-1]
-            grown[:-1] |= cell[1:]
-            out[k] = grown | np.roll(grown, 1, axis=1) | np.roll(grown, -1, axis=1)
+            out[k] = widen_cells(cell)
         return out
 
     def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True, box_albedo=False):

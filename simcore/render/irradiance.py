@@ -1193,11 +1193,7 @@ class Renderer:
         if self._scene is None:
             return None
         vis = 1.0 - np.nan_to_num(self.blocked_share(), nan=0.0)
-        grown = vis.copy()
-        grown[:, 1:] = np.maximum(grown[:, 1:], vis[:, :-1])
-        grown[:, :-1] = np.maximum(grown[:, :-1], vis[:, 1:])
-        grown = np.maximum(grown, np.maximum(np.roll(grown, 1, axis=2), np.roll(grown, -1, axis=2)))
-        return host_array(self._mi.Float, grown)
+        return host_array(self._mi.Float, widen_cells(vis))
 
     def direction_grid(self):
         """Return (theta, phi) (_VIS_NT,), (_VIS_NP,) rad: the cell centres of the 1 x 2 deg direction grid
@@ -1205,6 +1201,15 @@ class Renderer:
         th = (np.arange(_VIS_NT) + 0.5) * (0.5 * np.pi / _VIS_NT)
         ph = (np.arange(_VIS_NP) + 0.5) * (2.0 * np.pi / _VIS_NP) - np.pi
         return th, ph
+
+    @staticmethod
+    def direction_cell(local):
+        """Return (row, column) int arrays (...): the cell of :meth:`direction_grid` holding each unit direction
+        ``local`` (..., 3) given in a diode's frame (u, v, n); directions behind the diode take row _VIS_NT - 1."""
+        theta = np.arccos(np.clip(local[..., 2], -1.0, 1.0))
+        row = np.minimum((theta * (_VIS_NT / (0.5 * np.pi))).astype(int), _VIS_NT - 1)
+        col = ((np.arctan2(local[..., 1], local[..., 0]) + np.pi) * (_VIS_NP / (2.0 * np.pi))).astype(int) % _VIS_NP
+        return row, col
 
     def blocked_share(self):
         """Return (K, 90, 180) (computed once): per diode and direction of its 1 x 2 deg grid (:meth:`direction_grid`), the
@@ -1824,6 +1829,16 @@ class Renderer:
         dd = np.einsum("tij,tj->ti", self.diodes.frames[k_], d_body)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return lit_rectangle_of(ap.T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
+
+
+def widen_cells(a):
+    """Return ``a`` (..., rows, columns) of direction-grid cells (:meth:`Renderer.direction_grid`) with each cell the
+    largest of itself and its neighbours one row and one column away (bool: any of them), azimuth wrapping round:
+    so that an edge passing between the cells' centres still marks the cells it crosses."""
+    grown = a.copy()
+    grown[..., 1:, :] = np.maximum(grown[..., 1:, :], a[..., :-1, :])
+    grown[..., :-1, :] = np.maximum(grown[..., :-1, :], a[..., 1:, :])
+    return np.maximum(grown, np.maximum(np.roll(grown, 1, axis=-1), np.roll(grown, -1, axis=-1)))
 
 
 def _plane_normals(normals, max_planes=_MAX_MIRROR_PLANES):
