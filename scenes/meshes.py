@@ -187,14 +187,15 @@ def build_parts(config, include_diodes=False):
     return parts
 
 
-def build_satellite_mesh(config):
+def build_satellite_mesh(config, parts=None):
     """Return the satellite's occluder (body, ramps, floors, wells, plugs, parts) as one mesh, body frame, metres.
 
     ``mesh.metadata['parts']`` maps each part name to its (first, stop) face range and
     ``mesh.metadata['materials']`` to its material (the renderer path-traces the parts that are
     not 'black'). The diodes' sensitive surfaces are NOT included (see :func:`diode_surfaces`).
+    ``parts``: :func:`build_parts` of ``config`` when the caller has it already.
     """
-    parts = build_parts(config)
+    parts = build_parts(config) if parts is None else parts
     ranges, start = {}, 0
     for name, mesh in parts.items():
         ranges[name] = (start, start + len(mesh.faces))

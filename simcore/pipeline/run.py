@@ -25,7 +25,7 @@ import numpy as np
 import xarray as xr
 
 from scenes.config import SatelliteConfig, body_side_normal
-from scenes.meshes import build_satellite_mesh
+from scenes.meshes import build_parts, build_satellite_mesh
 from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
@@ -178,11 +178,16 @@ class PreparedRun:
         dist = np.linalg.norm(self.geometry.sun_from_sat_gcrs_m, axis=1)
         return float(np.arcsin(R_SUN_M / np.nanmean(dist)))
 
+    @functools.cached_property
+    def _parts(self):
+        """Return ``scenes.meshes.build_parts`` of the configuration (the renderer's mesh and the mounts rule)."""
+        return build_parts(self.config)
+
     @property
     def renderer(self):
         if self._renderer is None:
             self._renderer = Renderer(
-                DiodeSurfaces.from_config(self.config), build_satellite_mesh(self.config),
+                DiodeSurfaces.from_config(self.config), build_satellite_mesh(self.config, self._parts),
                 reflectivity=self.map.values_south_first, lon_west_deg=float(self.map.lon_edges_deg[0]),
                 e_sun_w_m2=self.opts.e_sun_w_m2, sun_angular_radius_rad=self.sun_angular_radius_rad,
                 variant=self.opts.variant)
@@ -266,12 +271,11 @@ class PreparedRun:
         diode's against the others' mounts (its own well's walls, which its lit part's probes may graze at the
         horizon in float32, are the analytic model's)."""
         import trimesh
-        from scenes.meshes import build_parts
         if self.config.n_diodes < 2:
             return None
         where = np.nan_to_num(self.renderer.blocked_share(), nan=0.0) > 0    # (the renderer sets Mitsuba's variant)
         mi = _llvm.import_mitsuba()
-        mounts = {name: m for name, m in build_parts(self.config).items() if name != "body" and not name.startswith("part_")}
+        mounts = {name: m for name, m in self._parts.items() if name != "body" and not name.startswith("part_")}
 
         def hit(scene, where):
             return np.nan_to_num(self.renderer.probe_share(scene, where), nan=0.0) > 0
