@@ -266,3 +266,37 @@ def test_direction_visibility_backends_agree_and_partition_the_albedo(rng):
     for name in ("albedo_w_m2", "albedo_mesh_w_m2", "albedo_visibility_error_w_m2"):
         np.testing.assert_allclose(getattr(b, name), getattr(a, name), rtol=1e-9, atol=1e-9, err_msg=name)
     assert np.count_nonzero(a.albedo_mesh_w_m2) > 0.2 * a.albedo_mesh_w_m2.size
+
+
+def test_direction_visibility_near_the_panel_plane_backends_agree(rng):
+    # The Dr.Jit kernel looks a direction up in the marked cells only where it can lie in one: below a bound on
+    # its height over the diode's panel (analytic._marked_panel_bounds). Oracle: the numpy backend, which looks
+    # every direction up. Marked cells as the shadows make them, a band along each panel's plane (tilted
+    # diodes on the four side panels, panel normals +-x, +-y; the two z diodes flat on theirs), with random
+    # shares: a bound that left out part of a marked cell would lose its share (with the bound taken at the
+    # cells' centres alone, without their half-diagonal, 23 % of the values differ and this test fails).
+    from simcore.radiometry.analytic import BodyBox, DirectionVisibility, _marked_panel_bounds
+    r, sun, rot = _orbit(rng, n=60)
+    frames = _tilt_frames()
+    ap = WellAperture.design(75.0)
+    panels = np.array([[1, 0, 0]] * 3 + [[0, 1, 0]] * 3 + [[-1, 0, 0]] * 3 + [[0, -1, 0]] * 3 + [[0, 0, 1], [0, 0, -1]],
+                      float)
+    body = BodyBox((0.05, 0.05, 0.1135), panels * 0.06, panels)
+    K, nt, nph, sub = len(frames), 90, 180, 4
+    th = (np.arange(nt) + 0.5) * (np.pi / 2 / nt)
+    ph = -np.pi + (np.arange(nph) + 0.5) * (2 * np.pi / nph)
+    tt, pp = np.meshgrid(th, ph, indexing="ij")
+    centres = np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], axis=-1)
+    height = np.einsum("ijc,kc->kij", centres, np.einsum("kcb,kb->kc", frames, panels))   # over each panel
+    mask = (height > -0.15) & (height < 0.02)
+    bounds = _marked_panel_bounds(mask, frames, body)
+    assert all(b is not None and b[1] < 0.06 for b in bounds[:12])   # the bound does leave cells out
+    fine = rng.random((K, nt * sub, nph * sub))
+    coarse = rng.random((K, nt * sub // 2, nph * sub // 2))
+    kw = dict(body=body, sun_angular_radius_rad=0.0, direct=False,
+              visibility=DirectionVisibility(mask, fine, coarse))
+    a = diode_irradiance(r, sun, rot, frames, ap, backend="numpy", **kw)
+    b = diode_irradiance(r, sun, rot, frames, ap, backend="drjit", precision="double", **kw)
+    for name in ("albedo_w_m2", "albedo_mesh_w_m2", "albedo_visibility_error_w_m2"):
+        np.testing.assert_allclose(getattr(b, name), getattr(a, name), rtol=1e-9, atol=1e-9, err_msg=name)
+    assert np.count_nonzero(a.albedo_mesh_w_m2[:, :12]) > 0.1 * a.albedo_mesh_w_m2[:, :12].size

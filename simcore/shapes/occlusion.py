@@ -150,9 +150,11 @@ def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m)
              for k in range(3)]
     zero = np.zeros(T)
     lower.append((zero, zero, -np.where(front, dn, 1.0), zero))
-    # gi <= 0: t >= (ci - ai X - bi Y) / gi;  gj >= 0: t <= (cj - aj X - bj Y) / gj
+    # gi <= 0: t >= (ci - ai X - bi Y) / gi;  gj >= 0: t <= (cj - aj X - bj Y) / gj. A face's bound against
+    # its opposite face's (i == j) reads 0 X + 0 Y <= 2 half |d_k| exactly (the products cancel bit for bit):
+    # it holds everywhere and is left out.
     planes = [(ai * gj - aj * gi, bi * gj - bj * gi, ci * gj - cj * gi)
-              for ai, bi, gi, ci in lower for aj, bj, gj, cj in upper]
+              for i, (ai, bi, gi, ci) in enumerate(lower) for j, (aj, bj, gj, cj) in enumerate(upper) if i != j]
     # Most lit rectangles lie wholly outside the shadow (a half-plane excludes all four corners: nothing to
     # clip) or wholly inside it (every half-plane holds all four: the whole rectangle is shadowed); only
     # the others, which a shadow edge crosses, are clipped.
