@@ -364,11 +364,25 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     ops = _DrJitOps(dr, 1e-30 if precision == "single" else 1e-300)
     kernels = [_resp.kernel(r) for r in responses]
     base = lane_row * n_lon
+    # A diode centred on or beyond its panel's face (the panel normal a body axis) meets the box only along
+    # directions below the panel's plane: along the others the slab test's exit along that axis is at t <= 0
+    # (exactly, also for a direction in the plane). A packet of lanes that all look above it skips the test.
+    box_above = [None] * K
+    if body_box is not None:
+        for k in range(K):
+            pn = np.asarray(body_box.panel_normals[k], float)
+            beyond = pn @ np.asarray(body_box.positions_m[k], float) >= np.abs(pn) @ np.asarray(body_box.half_m, float)
+            if np.count_nonzero(pn) == 1 and beyond:
+                box_above[k] = pn.tolist()
 
     def _diode_term(k, a0, wt, bx, by, bz, du, dv, dn, acc, *more):
         a = a0
         if body_box is not None:
-            a = dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
+            if box_above[k] is None:
+                a = dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
+            else:
+                a = dr.if_stmt(args=(k, a0, bx, by, bz), cond=box_above[k][0] * bx + box_above[k][1] * by
+                               + box_above[k][2] * bz < 0.0, true_fn=_box_term, false_fn=lambda k, a0, *_: a0)
         if comp is None:
             return (acc + wt * a,)
         part, alt, *box = more
@@ -385,6 +399,9 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         else:
             alt = alt + wt * a
         return (acc + wt * a, part, alt, *box)
+
+    def _box_term(k, a0, bx, by, bz):
+        return dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
 
     def _marked_share(k, a0, a, wt, du, dv, dn, part, alt):
         # the cells of _fine_index: theta from the normal, azimuth from u
