@@ -521,8 +521,8 @@ def _box_hit_dr(dr, origin, d, half):
     ``origin`` and ``half`` are Python floats (baked into the kernel), ``d`` Dr.Jit arrays."""
     t_in, t_out = None, None
     for o, di, h in zip(map(float, origin), d, map(float, half)):
-        inv = dr.rcp(dr.select(dr.abs(di) > 1e-12, di, 1e-12))      # (one division, not two)
-        t1, t2 = (-h - o) * inv, (h - o) * inv
+        safe = dr.select(dr.abs(di) > 1e-12, di, 1e-12)
+        t1, t2 = (-h - o) / safe, (h - o) / safe
         lo, hi = dr.minimum(t1, t2), dr.maximum(t1, t2)
         t_in = lo if t_in is None else dr.maximum(t_in, lo)
         t_out = hi if t_out is None else dr.minimum(t_out, hi)
