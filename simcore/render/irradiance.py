@@ -93,7 +93,7 @@ import numpy as np
 
 from scenes.materials import MaterialError, bsdf_dict, check_material, is_black
 from simcore import _llvm
-from simcore._llvm import host_array, host_buffer, host_wrap
+from simcore._llvm import host_array
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
 from simcore.environment.maps import named_map
 from simcore.shapes.aperture import disc_rectangle_overlap, lit_rectangle_of
@@ -340,8 +340,9 @@ class _Lanes:
     """One launch's inputs as Dr.Jit arrays, for the kernels: the tasks' float fields packed row by row in one
     float32 array ``f`` (T rows of ``nf`` columns) and their integer fields in one uint32 array ``u`` (``nu``
     columns), ``layout`` naming the columns ((field, first column, width, in u), ...); ``tables`` the per-task
-    tables (``_TABLES``) and the renderer's own (reflectivity map, visibility table); ``task`` and ``j`` the
-    lane's task and sample indices; ``scene`` the occluders (or None).
+    tables (``_TABLES``), the renderer's own (reflectivity map, visibility table) and the task of each packet of
+    lanes; ``lane`` the lanes' counter 0 .. n - 1; ``scene`` the occluders (or None); ``task`` and ``j``, the lane's
+    task and sample index, are found in the kernel (Renderer._with_indices).
 
     Packed so that a launch costs two uploads (:func:`simcore._llvm.host_array`, ~24 us each) rather than one per
     field and column (~36 a launch). A dataclass so that ``drjit.freeze`` traverses it (Renderer._frozen): its
@@ -354,9 +355,10 @@ class _Lanes:
     layout: tuple
     nf: int
     nu: int
-    task: object
-    j: object
+    lane: object
     scene: object = None
+    task: object = None
+    j: object = None
 
     def column(self, name):
         """Return (first column, width, in u) of field ``name``."""
@@ -597,9 +599,18 @@ class Renderer:
         return mi.Vector3f(dr.gather(mi.Float, src.x, idx), dr.gather(mi.Float, src.y, idx),
                            dr.gather(mi.Float, src.z, idx))
 
-    def _lanes(self, t, task, j):
-        """Return the :class:`_Lanes` of tasks ``t`` (a dict of per-task numpy fields, None where absent) for the
-        lanes' task and sample indices ``task``, ``j`` (Dr.Jit UInt32). Integer fields (and ``m``, the strata
+    def _tables(self, t):
+        """Return the tables (``_TABLES``) of the tasks ``t`` as Dr.Jit arrays (row-major, one row a task), uploaded
+        once for all of them, and ``row`` (T,): each task's row, the column the kernels read the tables at
+        (whatever round or launch the task's lanes fall in: a round repeats a task in two groups, and the tables
+        are ~2 kB a task)."""
+        out = {k: host_array(self._mi.Float, t[k]) for k in _TABLES if isinstance(t.get(k), np.ndarray)}
+        out["row"] = np.arange(len(t["k"]), dtype=np.uint32)
+        return out
+
+    def _lanes(self, t, n_lanes, packet=None):
+        """Return the :class:`_Lanes` of tasks ``t`` (a dict of per-task numpy fields, None where absent) for a
+        launch of ``n_lanes`` lanes; ``packet``: the task of each packet of lanes (:meth:`_launches`). Integer fields (and ``m``, the strata
         parameter, which the kernels read as an integer) become uint32 columns; ``m`` also gives the float
         columns ``inv_m`` (1 / m) and ``half_inv_m`` (0.5 / m), divided here in float64 as the kernels' inputs
         always were; the rest float32 columns."""
@@ -612,7 +623,7 @@ class Renderer:
             if v is None:
                 continue
             if name in _TABLES:
-                tables[name] = host_array(mi.Float, v)
+                tables[name] = v                    # uploaded once for all the tasks (_tables)
                 continue
             v = np.asarray(v)
             if name == "m":
@@ -632,8 +643,15 @@ class Renderer:
         tables["refl"] = self._refl_dr
         if self._vis is not None:
             tables["vis"] = self._vis
+        if packet is not None:
+            # (a 1-element array would be a literal baked into the kernel: a lone packet gets an unread second)
+            tables["packet"] = host_array(mi.UInt32, packet if len(packet) > 1 else np.concatenate([packet, packet]))
+        # The lanes' counter, evaluated: the one array the kernels read lane by lane, which gives a frozen kernel
+        # its launch size (_run)
+        lane = self._dr.arange(mi.UInt32, n_lanes)
+        self._dr.make_opaque(lane)
         return _Lanes(host_array(mi.Float, np.concatenate(fcols, axis=1)),
-                      host_array(mi.UInt32, np.concatenate(ucols, axis=1)), tables, tuple(layout), nf, nu, task, j,
+                      host_array(mi.UInt32, np.concatenate(ucols, axis=1)), tables, tuple(layout), nf, nu, lane,
                       self._scene)
 
     def _run(self, kernel, lanes, *args):
@@ -697,10 +715,14 @@ class Renderer:
 
     # -- lanes: task k owns counts[k] consecutive lanes (its samples), split into launches
     def _launches(self, counts):
-        """Yield (task slice, lane task index (np.uint32), lane sample index (np.uint32)) per launch, for tasks of
-        ``counts`` (T,) >= 1 samples each (aligned host buffers for :func:`simcore._llvm.host_wrap`)."""
-        if len(counts) and counts.min() < 1:
-            raise ValueError(f"every task needs at least one sample, got counts down to {counts.min()}")
+        """Yield (task slice, the task of each packet of ``_PACKET`` lanes (np.uint32), each task's first lane
+        (np.uint32)) per launch, for tasks of ``counts`` (T,) samples each, positive multiples of ``_PACKET``.
+
+        Per packet rather than per lane: the kernels find a lane's task and sample index from these
+        (:meth:`_with_indices`), so that the host builds 1/16 of the lanes' worth of indices."""
+        if len(counts) and (counts.min() < 1 or np.any(counts % _PACKET)):
+            raise ValueError(f"every task needs a positive multiple of {_PACKET} samples, got counts "
+                             f"{counts.min()} .. {counts.max()}")
         ends = np.cumsum(counts)
         start = 0
         while start < len(counts):
@@ -710,17 +732,18 @@ class Renderer:
             if stop == start + 1 and len(counts) > start + 1:
                 stop = start + 2                  # keep >= 2 tasks: a 1-element array is a literal
             sl = slice(start, stop)
-            c = counts[sl]
-            n = int(c.sum())                                  # (a launch holds < 2^32 lanes)
-            task = host_buffer(n, np.uint32)
-            task[:] = 0
-            task[np.cumsum(c[:-1])] = 1                        # (counts >= 1) 1 at each later task's first lane
-            np.cumsum(task, out=task)
-            j = host_buffer(n, np.uint32)
-            j[:] = np.arange(n, dtype=np.uint32)
-            j -= np.repeat((np.cumsum(c) - c).astype(np.uint32), c)
-            yield sl, task, j
+            c = counts[sl]                                    # (a launch holds < 2^32 lanes)
+            yield sl, np.repeat(np.arange(len(c), dtype=np.uint32), c // _PACKET), (np.cumsum(c) - c).astype(np.uint32)
             start = stop
+
+    def _with_indices(self, a):
+        """Return the lanes ``a`` (:class:`_Lanes` of a :meth:`_trace` launch) with each lane's task and sample index
+        (``task``, ``j``): the task of its packet (``tables['packet']``) and its offset from the task's first lane
+        (column ``first``)."""
+        dr, mi = self._dr, self._mi
+        task = dr.gather(mi.UInt32, a.tables["packet"], a.lane >> int(np.log2(_PACKET)))
+        a = replace(a, task=task)
+        return replace(a, j=a.lane - self._col(a, "first"))
 
     def _trace(self, kernel, t, counts):
         """Return the per-lane values (sum(counts),) float32 of ``kernel`` over tasks ``t`` (their lanes laid out task
@@ -732,12 +755,11 @@ class Renderer:
         # each task's lanes start on a packet boundary (the extra lanes, samples past its count, are dropped)
         padded = -(-counts // _PACKET) * _PACKET
         out = []
-        for sl, task, j in self._launches(padded):
-            sub = {k: (None if v is None else v[sl]) for k, v in t.items()}
+        for sl, packet, first in self._launches(padded):
+            sub = dict(_take(t, sl), first=first)
             if sl.stop - sl.start < 2:
                 sub = _pad2(sub)
-            out.append(self._run(kernel, self._lanes(sub, host_wrap(self._mi.UInt32, task),
-                                                     host_wrap(self._mi.UInt32, j))).numpy())
+            out.append(self._run(kernel, self._lanes(sub, len(packet) * _PACKET, packet)).numpy())
         vals = out[0] if len(out) == 1 else np.concatenate(out)
         if np.array_equal(padded, counts):
             return vals
@@ -881,6 +903,7 @@ class Renderer:
     # -- direct Sun kernel
     def _direct_kernel(self, a):
         dr, mi = self._dr, self._mi
+        a = self._with_indices(a)
         task, j = a.task, a.j
         # Strata: the 2 m^2 diamonds (squares turned 45 deg) around the points (k, l) / 2m of
         # the unit torus with k + l even, so that the aperture walls' edges, parallel to the
@@ -939,6 +962,7 @@ class Renderer:
     # -- albedo kernel
     def _albedo_kernel(self, a):
         dr, mi = self._dr, self._mi
+        a = self._with_indices(a)
         task, j = a.task, a.j
         B = _N_T * _N_P
         h = j >> 1
@@ -948,7 +972,8 @@ class Renderer:
         u = (mi.Float(h) + r[0]) * inv_m
         # Bin by binary search in the task's inclusive CDF (count of entries <= u).
         cdf = a.tables["cdf"]
-        base = task * B
+        row = self._col(a, "row")                   # the task's row of the tables
+        base = row * B
         lo = dr.zeros(mi.UInt32, dr.width(task))
         step = B // 2
         while step >= 1:
@@ -961,8 +986,8 @@ class Renderer:
         bp = b & (_N_P - 1)
         xmax = self._col(a, "xmax")
         edges = a.tables["tedge"]
-        t0 = dr.gather(mi.Float, edges, task * (_N_T + 1) + bt)
-        dt = dr.gather(mi.Float, edges, task * (_N_T + 1) + bt + 1) - t0
+        t0 = dr.gather(mi.Float, edges, row * (_N_T + 1) + bt)
+        dt = dr.gather(mi.Float, edges, row * (_N_T + 1) + bt + 1) - t0
         g3 = lambda k: self._vec(a, k)  # noqa: E731
         d = self._cap_direction(g3("w"), g3("e1"), g3("e2"), xmax, t0 + dt * r[1],
                                 (mi.Float(bp) + r[2]) * (2.0 * np.pi / _N_P))
@@ -988,6 +1013,7 @@ class Renderer:
         path vertex, whose code does not depend on the depth (it is compiled once and reused); after each
         launch the paths still in flight are compacted (most leave the spacecraft at once)."""
         dr, mi = self._dr, self._mi
+        a = self._with_indices(a)
         task, j = a.task, a.j
         n_lanes = dr.width(task)
         total = dr.zeros(mi.Float, n_lanes)
@@ -1273,13 +1299,13 @@ class Renderer:
         """Return the proposal's weights (T n_points,) at the bins' corners of tasks ``a`` (:class:`_Lanes`
         whose ``j`` counts the lanes 0 .. T n_points - 1, ``n_points`` per task)."""
         dr, mi = self._dr, self._mi
-        i = a.j
+        i = a.lane
         task = i // n_points
         a = replace(a, task=task)
         p = i - task * n_points
         it = p // (_N_P + 1)                             # bin corners: (N_T + 1) x (N_P + 1)
         ip = p - it * (_N_P + 1)
-        t01 = dr.gather(mi.Float, a.tables["tedge"], task * (_N_T + 1) + it)
+        t01 = dr.gather(mi.Float, a.tables["tedge"], self._col(a, "row") * (_N_T + 1) + it)
         phi = mi.Float(ip) * (2.0 * np.pi / _N_P)
         g3 = lambda k: self._vec(a, k)  # noqa: E731
         d = self._cap_direction(g3("w"), g3("e1"), g3("e2"), self._col(a, "xmax"), t01, phi)
@@ -1547,18 +1573,17 @@ class Renderer:
         return dict(prop, pmf=pmf.astype(np.float32), cdf=cdf.astype(np.float32))
 
     def _trace_tasks(self, kernel, t, n_points):
-        """Return ``kernel(t, n_points)`` (T, n_points) for the tasks ``t`` in launches of bounded size."""
+        """Return ``kernel(lanes, n_points)`` (T, n_points) for the tasks ``t`` in launches of bounded size."""
         T = len(t["key"])
         if T < 2:
             return self._trace_tasks(kernel, _pad2(t), n_points)[:T]
+        t = dict(t, **self._tables(t))
         per = max(2, _MAX_LANES // n_points)
         n = -(-T // per)
         edges = np.linspace(0, T, n + 1).round().astype(int)
-        mi = self._mi
         out = []
         for a, b in zip(edges[:-1], edges[1:]):
-            lanes = self._lanes({k: (None if v is None else v[a:b]) for k, v in t.items()}, None,
-                                self._dr.arange(mi.UInt32, (b - a) * n_points))
+            lanes = self._lanes(_take(t, slice(a, b)), (b - a) * n_points)
             out.append(self._run(kernel, lanes, n_points).numpy().reshape(b - a, n_points))
         return np.concatenate(out)
 
@@ -1807,7 +1832,7 @@ class Renderer:
         idx = np.concatenate([p[1] for p in parts])
         lanes = np.concatenate([p[2] for p in parts]).astype(np.int64)
         mode = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
-        t = {k: (None if v is None else v[idx]) for k, v in base.items()}
+        t = _take(base, idx)
         t["key"] = _mix32(seed, g_[idx], k_[idx], kind, rnd, mode)
         t["mode"] = mode
         t["m"] = _strata_param(kind != _ALBEDO, lanes)
@@ -1842,6 +1867,7 @@ class Renderer:
         base = self._tasks(e_, k_, sun, earth, None)
         base["rot"] = rot[e_]
         base.update(self._albedo_proposal(dict(base, key=np.zeros(len(e_), np.uint32))))
+        base.update(self._tables(base))
         m, se, dof, n = self._rounds(self._albedo_kernel, base, _ALBEDO, g_, k_, seed, n0, rel, floor, cap, E[e_],
                                      _albedo_size, 2.0)
         out["am"][e_, k_], out["ase"][e_, k_], out["adof"][e_, k_], n_used[e_, k_] = m, se, dof, n
@@ -2036,7 +2062,13 @@ def _pad2(t):
     literal baked into the kernel, so every new value would compile a new kernel)."""
     if len(t["key"]) >= 2:
         return t
-    return {k: (None if v is None else np.concatenate([v, v])) for k, v in t.items()}
+    return {k: (np.concatenate([v, v]) if isinstance(v, np.ndarray) else v) for k, v in t.items()}
+
+
+def _take(t, idx):
+    """Return the task dict ``t`` of the tasks ``idx`` (indices or a slice): its numpy fields indexed, the rest (None,
+    and the tables uploaded once for all its tasks, Renderer._tables) as they are."""
+    return {k: (v[idx] if isinstance(v, np.ndarray) else v) for k, v in t.items()}
 
 
 def _shortfall(mean, se, n, rel, floor, power):
