@@ -93,7 +93,7 @@ import numpy as np
 
 from scenes.materials import MaterialError, bsdf_dict, check_material, is_black
 from simcore import _llvm
-from simcore._llvm import host_array
+from simcore._llvm import host_array, host_buffer, host_wrap
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
 from simcore.environment.maps import named_map
 from simcore.shapes.aperture import disc_rectangle_overlap, lit_rectangle_of
@@ -610,15 +610,16 @@ class Renderer:
 
     def _lanes(self, t, n_lanes, packet=None):
         """Return the :class:`_Lanes` of tasks ``t`` (a dict of per-task numpy fields, None where absent) for a
-        launch of ``n_lanes`` lanes; ``packet``: the task of each packet of lanes (:meth:`_launches`). Integer fields (and ``m``, the strata
-        parameter, which the kernels read as an integer) become uint32 columns; ``m`` also gives the float
-        columns ``inv_m`` (1 / m) and ``half_inv_m`` (0.5 / m), divided here in float64 as the kernels' inputs
-        always were; the rest float32 columns."""
-        mi = self._mi
+        launch of ``n_lanes`` lanes; ``packet``: the task of each packet of lanes (:meth:`_launches`).
+
+        Integer fields (and ``m``, the strata parameter, which the kernels read as an integer) become uint32
+        columns; ``m`` also gives the float columns ``inv_m`` (1 / m) and ``half_inv_m`` (0.5 / m), divided in
+        float64 as the kernels' inputs always were; the rest float32 columns (rounded from float64 once, on
+        assignment, as a separate upload of each field rounded them)."""
+        dr, mi = self._dr, self._mi
         T = len(t["key"])
-        fcols, ucols, layout, tables = [], [], [], {}
+        layout, tables, fields = [], {}, []
         nf = nu = 0
-        fields = []
         for name, v in t.items():
             if v is None:
                 continue
@@ -627,19 +628,22 @@ class Renderer:
                 continue
             v = np.asarray(v)
             if name == "m":
-                fields += [(name, v.astype(np.uint32), True), ("inv_m", 1.0 / v, False), ("half_inv_m", 0.5 / v, False)]
+                parts = [(name, v.astype(np.uint32), True), ("inv_m", 1.0 / v, False), ("half_inv_m", 0.5 / v, False)]
             else:
-                fields.append((name, v, v.dtype.kind in "iub"))
-        for name, v, integer in fields:
-            v = v.reshape(T, -1)
-            if integer:
-                layout.append((name, nu, v.shape[1], True))
-                ucols.append(v.astype(np.uint32))
-                nu += v.shape[1]
-            else:
-                layout.append((name, nf, v.shape[1], False))
-                fcols.append(v)
-                nf += v.shape[1]
+                parts = [(name, v, v.dtype.kind in "iub")]
+            for name_, v_, integer in parts:
+                v_ = v_.reshape(T, -1)
+                layout.append((name_, nu if integer else nf, v_.shape[1], integer))
+                fields.append(v_)
+                if integer:
+                    nu += v_.shape[1]
+                else:
+                    nf += v_.shape[1]
+        # filled in place in Dr.Jit-safe buffers and handed over without another copy (simcore._llvm.host_buffer)
+        f, u = host_buffer(T * nf, np.float32), host_buffer(T * nu, np.uint32)
+        f2, u2 = f.reshape(T, nf), u.reshape(T, nu)
+        for (_, c, w, integer), v in zip(layout, fields):
+            (u2 if integer else f2)[:, c:c + w] = v
         tables["refl"] = self._refl_dr
         if self._vis is not None:
             tables["vis"] = self._vis
@@ -648,11 +652,9 @@ class Renderer:
             tables["packet"] = host_array(mi.UInt32, packet if len(packet) > 1 else np.concatenate([packet, packet]))
         # The lanes' counter, evaluated: the one array the kernels read lane by lane, which gives a frozen kernel
         # its launch size (_run)
-        lane = self._dr.arange(mi.UInt32, n_lanes)
-        self._dr.make_opaque(lane)
-        return _Lanes(host_array(mi.Float, np.concatenate(fcols, axis=1)),
-                      host_array(mi.UInt32, np.concatenate(ucols, axis=1)), tables, tuple(layout), nf, nu, lane,
-                      self._scene)
+        lane = dr.arange(mi.UInt32, n_lanes)
+        dr.make_opaque(lane)
+        return _Lanes(host_wrap(mi.Float, f), host_wrap(mi.UInt32, u), tables, tuple(layout), nf, nu, lane, self._scene)
 
     def _run(self, kernel, lanes, *args):
         """Return ``kernel(lanes, *args)`` (a Dr.Jit array), the direct, albedo and proposal kernels replayed from a
