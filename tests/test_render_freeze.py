@@ -98,3 +98,40 @@ def test_a_renderer_with_other_settings_records_its_own_kernels():
     ref, _ = _render(cfg, False, sun, earth, rot, sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD, **dict(kw))
     for name in _ARRAYS:
         np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+
+
+def test_a_kernel_whose_lanes_are_all_constant_follows_the_launch_size():
+    # A bare diode and no mesh, point Sun: every direct lane reads 1 and the tracer folds the kernel's result to a
+    # constant; replayed for a batch of another size it must still have that batch's lanes (Renderer._run anchors
+    # it on the lanes' counter). The oracle: E_sun cos(theta) exactly (a bare plate), and the traced kernels.
+    from simcore.constants import E_SUN_W_M2
+    from simcore.shapes.aperture import diode_frame
+    ds = DiodeSurfaces(np.zeros((1, 3)), diode_frame(np.array([0.0, 0.0, 1.0]))[None], [0.01, 0.01])
+    th = np.radians(np.arange(0, 90))
+    sun = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)
+    rend = Renderer(ds)
+    got = rend.render(sun, batch_epochs=64)                    # batches of 64 and 26 epochs
+    assert rend._frozen["_direct_kernel"].n_recordings == 1
+    np.testing.assert_allclose(got.direct_w_m2[:, 0], E_SUN_W_M2 * np.cos(th), rtol=1e-6, atol=0)
+
+
+def test_a_dropped_renderer_is_freed_at_once():
+    # The frozen wrappers hold the renderer weakly: were it in a reference cycle, only the cycle collector would
+    # free it, at any time, possibly inside another frozen recording, where releasing its numpy-backed Dr.Jit
+    # arrays aborts the process (Dr.Jit 1.5, "enqueue_host_func(): this function cannot be recorded!").
+    import gc
+    import weakref
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    sun, earth, rot = _epochs(8, seed=1)
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg))
+        rend.render(sun, earth, rot, direct_samples=64, albedo_samples=16)
+        assert len(rend._frozen) == 3
+        ref = weakref.ref(rend)
+        del rend
+        assert ref() is None
+    finally:
+        if enabled:
+            gc.enable()

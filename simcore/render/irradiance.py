@@ -87,7 +87,9 @@ absolute floor ``abs_se_floor_w_m2``) get further rounds of samples, up to a
 cap.
 """
 from dataclasses import dataclass, field, replace
+import gc
 import os
+import weakref
 
 import numpy as np
 
@@ -664,16 +666,37 @@ class Renderer:
         tasks' fields, tables and lane indices are the arrays of ``lanes`` (a :class:`_Lanes`: its ``layout``,
         ``nf``, ``nu`` and the Python ``args`` are part of the recording's key, so a task dict with other fields
         records anew), the occluders are ``lanes.scene``, and the renderer's own settings that shape the traced
-        code are ``_kernel_state`` (also part of the key). The launch size follows the lane indices (``task``,
-        ``j``: the only arrays the kernels read lane by lane; all else is gathered), and no kernel reads a size
-        or an element into Python. The reflected kernel is not frozen: its wavefront compacts the live paths
+        code are ``_kernel_state`` (also part of the key). The launch size follows the lanes' counter
+        (``lanes.lane``: the only array the kernels read lane by lane; all else is gathered), and no kernel reads a
+        size or an element into Python. The reflected kernel is not frozen: its wavefront compacts the live paths
         (``drjit.compress``), whose count depends on the data, and would record anew at every call."""
         if kernel.__name__ == "_reflected_kernel":
             return kernel(lanes, *args)
         frozen = self._frozen.get(kernel.__name__)
         if frozen is None:
-            frozen = self._frozen[kernel.__name__] = self._dr.freeze(kernel, state_fn=self._kernel_state)
-        return frozen(lanes, *args)
+            dr = self._dr
+            # Weak references to the renderer: the wrappers it holds must not hold it, or it would die only in the
+            # cycle collector, at any time, possibly inside another recording, where releasing its numpy-backed
+            # arrays aborts the process (Dr.Jit 1.5: "enqueue_host_func(): this function cannot be recorded!").
+            kernel_ref, state_ref = weakref.WeakMethod(kernel), weakref.WeakMethod(self._kernel_state)
+
+            def anchored(lanes, *args):
+                # The result passed through a select on the lanes' counter (always true: a launch holds < 2^32 - 1
+                # lanes; the values are unchanged). Where the tracer folds a kernel's result to a constant (a bare
+                # diode and no mesh: every lane reads 1), there is no kernel to replay and the recording would
+                # hand back a constant of the recorded launch's size; this keeps a kernel whose size is the lanes'.
+                return dr.select(lanes.lane != 0xFFFFFFFF, kernel_ref()(lanes, *args), 0.0)
+            frozen = self._frozen[kernel.__name__] = dr.freeze(
+                anchored, state_fn=lambda *a, **k: state_ref()(*a, **k))
+        # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
+        # arrays, released inside the frozen call, would abort the process as above.
+        enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return frozen(lanes, *args)
+        finally:
+            if enabled:
+                gc.enable()
 
     def _kernel_state(self, *args, **kwargs):
         """Return the renderer's settings that shape the traced direct, albedo and proposal kernels (part of their
