@@ -85,6 +85,12 @@ reproduces (``epoch_offset``). With target accuracies (``rel_se_direct``,
 ``rel_se_albedo``) the diode-epochs that have not reached them (nor the
 absolute floor ``abs_se_floor_w_m2``) get further rounds of samples, up to a
 cap.
+
+Launches: a launch's task fields go to the kernels packed in two arrays (``_Lanes``), and the direct, albedo
+and proposal kernels are ``drjit.freeze`` recordings, traced once and replayed (``Renderer._run``, which says
+why that is sound): every array a kernel reads must therefore reach it through its ``_Lanes`` (never a numpy
+array or a Dr.Jit array held elsewhere), and a renderer setting that changes the traced code belongs in
+``Renderer._kernel_state``. The values are bit for bit those of tracing every launch (tests/test_render_freeze.py).
 """
 from dataclasses import dataclass, field, replace
 import gc
