@@ -353,7 +353,7 @@ class _Lanes:
     task and sample index, are found in the kernel (Renderer._with_indices).
 
     Packed so that a launch costs two uploads (:func:`simcore._llvm.host_array`, ~24 us each) rather than one per
-    field and column (~36 a launch). A dataclass so that ``drjit.freeze`` traverses it (Renderer._frozen): its
+    field and column (~36 a launch). A dataclass so that ``drjit.freeze`` traverses it (Renderer._run): its
     arrays are the frozen kernels' inputs, and ``layout``, ``nf`` and ``nu`` (Python values) are part of the
     recording's key."""
 
@@ -611,7 +611,7 @@ class Renderer:
         """Return the tables (``_TABLES``) of the tasks ``t`` as Dr.Jit arrays (row-major, one row a task), uploaded
         once for all of them, and ``row`` (T,): each task's row, the column the kernels read the tables at
         (whatever round or launch the task's lanes fall in: a round repeats a task in two groups, and the tables
-        are ~2 kB a task)."""
+        are ~4 kB a task)."""
         out = {k: host_array(self._mi.Float, t[k]) for k in _TABLES if isinstance(t.get(k), np.ndarray)}
         out["row"] = np.arange(len(t["k"]), dtype=np.uint32)
         return out
