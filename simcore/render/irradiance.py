@@ -675,8 +675,10 @@ class Renderer:
         code are ``_kernel_state`` (also part of the key). The launch size follows the lanes' counter
         (``lanes.lane``: the only array the kernels read lane by lane; all else is gathered), and no kernel reads a
         size or an element into Python. The reflected kernel is not frozen: its wavefront compacts the live paths
-        (``drjit.compress``), whose count depends on the data, and would record anew at every call."""
-        if kernel.__name__ == "_reflected_kernel":
+        (``drjit.compress``), whose count depends on the data, and would record anew at every call. The CUDA
+        variant traces every launch as before: its frozen replay (OptiX scenes as recording inputs) has not been
+        checked against tracing here (no GPU), so it is not trusted with the results."""
+        if kernel.__name__ == "_reflected_kernel" or self.variant != "llvm_ad_mono":
             return kernel(lanes, *args)
         frozen = self._frozen.get(kernel.__name__)
         if frozen is None:
