@@ -338,8 +338,9 @@ def _unit(v, name):
     return v / n[..., None]
 
 
-# Per-task fields that the kernels read at other indices than the lane's task (bins, bin edges): uploaded each as
-# its own array; every other field of a task dict is a column of _Lanes.f or _Lanes.u.
+# Per-task fields that the kernels read at other indices than the lane's task (bins, bin edges): uploaded once for a
+# set of tasks (Renderer._tables) and read at the task's "row"; every other field of a task dict is a column of
+# _Lanes.f or _Lanes.u.
 _TABLES = ("cdf", "pmf", "tedge")
 
 
