@@ -112,14 +112,22 @@ def import_mitsuba():
 _PACKET_BYTES = 64
 _NUMPY_TYPES = {"Float32": "float32", "Float64": "float64", "UInt32": "uint32", "Int32": "int32",
                 "UInt64": "uint64", "Int64": "int64", "Bool": "bool"}
+_DTYPES = {}    # Dr.Jit array type -> numpy dtype (the renderer calls host_array thousands of times a run)
+
+
+def _dtype_of(cls):
+    """Return the numpy dtype of the Dr.Jit array type ``cls``'s elements."""
+    dtype = _DTYPES.get(cls)
+    if dtype is None:
+        dtype = _DTYPES[cls] = np.dtype(_NUMPY_TYPES[import_drjit().type_v(cls).name])
+    return dtype
 
 
 def host_array(cls, values):
     """Return the Dr.Jit array type ``cls`` (e.g. ``mi.Float``, ``drjit.llvm.UInt32``) holding a copy of the
     flattened ``values`` (converted to the type's dtype) in memory Dr.Jit's CPU kernels can read safely:
     64-byte aligned, with two packets of slack after its end (see the note above)."""
-    dr = import_drjit()
-    dtype = np.dtype(_NUMPY_TYPES[dr.type_v(cls).name])
+    dtype = _dtype_of(cls)
     a = np.asarray(values, dtype=dtype).reshape(-1)
     out = host_buffer(a.size, dtype)
     out[:] = a
@@ -140,9 +148,8 @@ def host_buffer(n, dtype):
 def host_wrap(cls, buffer):
     """Return the Dr.Jit array type ``cls`` holding ``buffer``, an array from :func:`host_buffer` (of the type's
     dtype), without copying it."""
-    dr = import_drjit()
     raw = buffer.base
-    if (buffer.dtype != np.dtype(_NUMPY_TYPES[dr.type_v(cls).name]) or buffer.ctypes.data % _PACKET_BYTES
+    if (buffer.dtype != _dtype_of(cls) or buffer.ctypes.data % _PACKET_BYTES
             or not isinstance(raw, np.ndarray) or raw.dtype != np.uint8
             or raw.ctypes.data + raw.nbytes < buffer.ctypes.data + buffer.nbytes + 2 * _PACKET_BYTES):
         raise ValueError("host_wrap takes an array from host_buffer (aligned, with slack) of the type's dtype")

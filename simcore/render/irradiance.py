@@ -85,9 +85,17 @@ reproduces (``epoch_offset``). With target accuracies (``rel_se_direct``,
 ``rel_se_albedo``) the diode-epochs that have not reached them (nor the
 absolute floor ``abs_se_floor_w_m2``) get further rounds of samples, up to a
 cap.
+
+Launches: a launch's task fields go to the kernels packed in two arrays (``_Lanes``), and the direct, albedo
+and proposal kernels are ``drjit.freeze`` recordings, traced once and replayed (``Renderer._run``, which says
+why that is sound): every array a kernel reads must therefore reach it through its ``_Lanes`` (never a numpy
+array or a Dr.Jit array held elsewhere), and a renderer setting that changes the traced code belongs in
+``Renderer._kernel_state``. The values are bit for bit those of tracing every launch (tests/test_render_freeze.py).
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+import gc
 import os
+import weakref
 
 import numpy as np
 
@@ -330,6 +338,49 @@ def _unit(v, name):
     return v / n[..., None]
 
 
+# Per-task fields that the kernels read at other indices than the lane's task (bins, bin edges): uploaded once for a
+# set of tasks (Renderer._tables) and read at the task's "row"; every other field of a task dict is a column of
+# _Lanes.f or _Lanes.u.
+_TABLES = ("cdf", "pmf", "tedge")
+
+
+@dataclass
+class _Lanes:
+    """One launch's inputs as Dr.Jit arrays, for the kernels: the tasks' float fields packed row by row in one
+    float32 array ``f`` (T rows of ``nf`` columns) and their integer fields in one uint32 array ``u`` (``nu``
+    columns), ``layout`` naming the columns ((field, first column, width, in u), ...); ``tables`` the per-task
+    tables (``_TABLES``), the renderer's own (reflectivity map, visibility table) and the task of each packet of
+    lanes; ``lane`` the lanes' counter 0 .. n - 1; ``scene`` the occluders (or None); ``task`` and ``j``, the lane's
+    task and sample index, are found in the kernel (Renderer._with_indices).
+
+    Packed so that a launch costs two uploads (:func:`simcore._llvm.host_array`, ~24 us each) rather than one per
+    field and column (~36 a launch). A dataclass so that ``drjit.freeze`` traverses it (Renderer._run): its
+    arrays are the frozen kernels' inputs, and ``layout``, ``nf`` and ``nu`` (Python values) are part of the
+    recording's key."""
+
+    f: object
+    u: object
+    tables: dict
+    layout: tuple
+    nf: int
+    nu: int
+    lane: object
+    scene: object = None
+    task: object = None
+    j: object = None
+
+    def column(self, name):
+        """Return (first column, width, in u) of field ``name``."""
+        for entry in self.layout:
+            if entry[0] == name:
+                return entry[1:]
+        raise KeyError(name)
+
+    def has(self, name):
+        """Return whether the tasks carry field ``name``."""
+        return any(entry[0] == name for entry in self.layout) or name in self.tables
+
+
 # --------------------------------------------------------------------------- renderer
 
 def occluder_scene(mesh, mi):
@@ -454,6 +505,7 @@ class Renderer:
         self.control_variate = bool(control_variate) and aps is not None
         self._win = _window_params(diodes)
         self._vis = self._visibility_table()
+        self._frozen = {}            # kernel name -> its drjit.freeze wrapper (_run)
         self._hit = None if self._pt is None else self._hit_table()
 
     # -- scene
@@ -556,6 +608,125 @@ class Renderer:
         return mi.Vector3f(dr.gather(mi.Float, src.x, idx), dr.gather(mi.Float, src.y, idx),
                            dr.gather(mi.Float, src.z, idx))
 
+    def _tables(self, t):
+        """Return the tables (``_TABLES``) of the tasks ``t`` as Dr.Jit arrays (row-major, one row a task), uploaded
+        once for all of them, and ``row`` (T,): each task's row, the column the kernels read the tables at
+        (whatever round or launch the task's lanes fall in: a round repeats a task in two groups, and the tables
+        are ~4 kB a task)."""
+        out = {k: host_array(self._mi.Float, t[k]) for k in _TABLES if isinstance(t.get(k), np.ndarray)}
+        out["row"] = np.arange(len(t["k"]), dtype=np.uint32)
+        return out
+
+    def _lanes(self, t, n_lanes, packet=None):
+        """Return the :class:`_Lanes` of tasks ``t`` (a dict of per-task numpy fields, None where absent) for a
+        launch of ``n_lanes`` lanes; ``packet``: the task of each packet of lanes (:meth:`_launches`).
+
+        Integer fields (and ``m``, the strata parameter, which the kernels read as an integer) become uint32
+        columns; ``m`` also gives the float columns ``inv_m`` (1 / m) and ``half_inv_m`` (0.5 / m), divided in
+        float64 as the kernels' inputs always were; the rest float32 columns (rounded from float64 once, on
+        assignment, as a separate upload of each field rounded them)."""
+        dr, mi = self._dr, self._mi
+        T = len(t["key"])
+        layout, tables, fields = [], {}, []
+        nf = nu = 0
+        for name, v in t.items():
+            if v is None:
+                continue
+            if name in _TABLES:
+                tables[name] = v                    # uploaded once for all the tasks (_tables)
+                continue
+            v = np.asarray(v)
+            if name == "m":
+                parts = [(name, v.astype(np.uint32), True), ("inv_m", 1.0 / v, False), ("half_inv_m", 0.5 / v, False)]
+            else:
+                parts = [(name, v, v.dtype.kind in "iub")]
+            for name_, v_, integer in parts:
+                v_ = v_.reshape(T, -1)
+                layout.append((name_, nu if integer else nf, v_.shape[1], integer))
+                fields.append(v_)
+                if integer:
+                    nu += v_.shape[1]
+                else:
+                    nf += v_.shape[1]
+        # filled in place in Dr.Jit-safe buffers and handed over without another copy (simcore._llvm.host_buffer)
+        f, u = host_buffer(T * nf, np.float32), host_buffer(T * nu, np.uint32)
+        f2, u2 = f.reshape(T, nf), u.reshape(T, nu)
+        for (_, c, w, integer), v in zip(layout, fields):
+            (u2 if integer else f2)[:, c:c + w] = v
+        tables["refl"] = self._refl_dr
+        if self._vis is not None:
+            tables["vis"] = self._vis
+        if packet is not None:
+            # (a 1-element array would be a literal baked into the kernel: a lone packet gets an unread second)
+            tables["packet"] = host_array(mi.UInt32, packet if len(packet) > 1 else np.concatenate([packet, packet]))
+        # The lanes' counter, evaluated: the one array the kernels read lane by lane, which gives a frozen kernel
+        # its launch size (_run)
+        lane = dr.arange(mi.UInt32, n_lanes)
+        dr.make_opaque(lane)
+        return _Lanes(host_wrap(mi.Float, f), host_wrap(mi.UInt32, u), tables, tuple(layout), nf, nu, lane, self._scene)
+
+    def _run(self, kernel, lanes, *args):
+        """Return ``kernel(lanes, *args)`` (a Dr.Jit array), the direct, albedo and proposal kernels replayed from a
+        ``drjit.freeze`` recording: traced once per layout of their inputs, then launched without tracing again.
+
+        Sound here because everything a launch's values depend on reaches the kernel as a traversed input: the
+        tasks' fields, tables and lane indices are the arrays of ``lanes`` (a :class:`_Lanes`: its ``layout``,
+        ``nf``, ``nu`` and the Python ``args`` are part of the recording's key, so a task dict with other fields
+        records anew), the occluders are ``lanes.scene``, and the renderer's own settings that shape the traced
+        code are ``_kernel_state`` (also part of the key). The launch size follows the lanes' counter
+        (``lanes.lane``: the only array the kernels read lane by lane; all else is gathered), and no kernel reads a
+        size or an element into Python. The reflected kernel is not frozen: its wavefront compacts the live paths
+        (``drjit.compress``), whose count depends on the data, and would record anew at every call. The CUDA
+        variant traces every launch as before: its frozen replay (OptiX scenes as recording inputs) has not been
+        checked against tracing here (no GPU), so it is not trusted with the results."""
+        if kernel.__name__ == "_reflected_kernel" or self.variant != "llvm_ad_mono":
+            return kernel(lanes, *args)
+        frozen = self._frozen.get(kernel.__name__)
+        if frozen is None:
+            dr = self._dr
+            # Weak references to the renderer: the wrappers it holds must not hold it, or it would die only in the
+            # cycle collector, at any time, possibly inside another recording, where releasing its numpy-backed
+            # arrays aborts the process (Dr.Jit 1.5: "enqueue_host_func(): this function cannot be recorded!").
+            kernel_ref, state_ref = weakref.WeakMethod(kernel), weakref.WeakMethod(self._kernel_state)
+
+            def anchored(lanes, *args):
+                # The result passed through a select on the lanes' counter (always true: a launch holds < 2^32 - 1
+                # lanes; the values are unchanged). Where the tracer folds a kernel's result to a constant (a bare
+                # diode and no mesh: every lane reads 1), there is no kernel to replay and the recording would
+                # hand back a constant of the recorded launch's size; this keeps a kernel whose size is the lanes'.
+                return dr.select(lanes.lane != 0xFFFFFFFF, kernel_ref()(lanes, *args), 0.0)
+            frozen = self._frozen[kernel.__name__] = dr.freeze(
+                anchored, state_fn=lambda *a, **k: state_ref()(*a, **k))
+        # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
+        # arrays, released inside the frozen call, would abort the process as above.
+        enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return frozen(lanes, *args)
+        finally:
+            if enabled:
+                gc.enable()
+
+    def _kernel_state(self, *args, **kwargs):
+        """Return the renderer's settings that shape the traced direct, albedo and proposal kernels (part of their
+        frozen recordings' key, :meth:`_run`)."""
+        return (self.variant, self.sun_angular_radius_rad, self.control_variate, self.earth_radius_m,
+                self.lon_west_rad, self.reflectivity.shape, self._win is None,
+                bool(self.control_variate and self._plain.any()))
+
+    def _col(self, a, name, i=0):
+        """Return column ``i`` of field ``name`` of the lanes' tasks (:class:`_Lanes`): mi.Float, or mi.UInt32 for
+        an integer field."""
+        dr, mi = self._dr, self._mi
+        c, _, in_u = a.column(name)
+        if in_u:
+            return dr.gather(mi.UInt32, a.u, a.task * a.nu + (c + i))
+        return dr.gather(mi.Float, a.f, a.task * a.nf + (c + i))
+
+    def _vec(self, a, name, row=0):
+        """Return the 3-vector ``row`` (columns 3 row .. 3 row + 2) of field ``name`` of the lanes' tasks."""
+        return self._mi.Vector3f(*(self._col(a, name, 3 * row + i) for i in range(3)))
+
     def _rand(self, key, j, k):
         """Return 2k uniform [0, 1) floats per lane: the two of TEA(key, j*k) (``_TEA_ROUNDS`` rounds: the lane's
         numbers independent of its neighbours'), then 2k - 2 from a PCG32 generator that those two 32-bit words
@@ -569,19 +740,23 @@ class Renderer:
             out += [mi.Float(rng.next_uint32() >> 8) * (1.0 / 16777216.0) for _ in range(2 * k - 2)]
         return out
 
-    def _blocked_by_mesh(self, o, d, active=True):
-        """Return whether the ray from ``o`` along ``d`` meets the mesh; False for lanes not ``active`` (those
-        whose value cannot depend on it: their rays are not traced)."""
-        if self._scene is None:
+    def _blocked_by_mesh(self, a, o, d, active=True):
+        """Return whether the ray from ``o`` along ``d`` meets the mesh (``a.scene``, :class:`_Lanes`); False for
+        lanes not ``active`` (those whose value cannot depend on it: their rays are not traced)."""
+        if a.scene is None:
             return self._dr.zeros(self._mi.Bool, self._dr.width(o))
-        return self._scene.ray_test(self._mi.Ray3f(o, d), active)
+        return a.scene.ray_test(self._mi.Ray3f(o, d), active)
 
     # -- lanes: task k owns counts[k] consecutive lanes (its samples), split into launches
     def _launches(self, counts):
-        """Yield (task slice, lane task index (np.uint32), lane sample index (np.uint32)) per launch, for tasks of
-        ``counts`` (T,) >= 1 samples each (aligned host buffers for :func:`simcore._llvm.host_wrap`)."""
-        if len(counts) and counts.min() < 1:
-            raise ValueError(f"every task needs at least one sample, got counts down to {counts.min()}")
+        """Yield (task slice, the task of each packet of ``_PACKET`` lanes (np.uint32), each task's first lane
+        (np.uint32)) per launch, for tasks of ``counts`` (T,) samples each, positive multiples of ``_PACKET``.
+
+        Per packet rather than per lane: the kernels find a lane's task and sample index from these
+        (:meth:`_with_indices`), so that the host builds 1/16 of the lanes' worth of indices."""
+        if len(counts) and (counts.min() < 1 or np.any(counts % _PACKET)):
+            raise ValueError(f"every task needs a positive multiple of {_PACKET} samples, got counts "
+                             f"{counts.min()} .. {counts.max()}")
         ends = np.cumsum(counts)
         start = 0
         while start < len(counts):
@@ -591,17 +766,18 @@ class Renderer:
             if stop == start + 1 and len(counts) > start + 1:
                 stop = start + 2                  # keep >= 2 tasks: a 1-element array is a literal
             sl = slice(start, stop)
-            c = counts[sl]
-            n = int(c.sum())                                  # (a launch holds < 2^32 lanes)
-            task = host_buffer(n, np.uint32)
-            task[:] = 0
-            task[np.cumsum(c[:-1])] = 1                        # (counts >= 1) 1 at each later task's first lane
-            np.cumsum(task, out=task)
-            j = host_buffer(n, np.uint32)
-            j[:] = np.arange(n, dtype=np.uint32)
-            j -= np.repeat((np.cumsum(c) - c).astype(np.uint32), c)
-            yield sl, task, j
+            c = counts[sl]                                    # (a launch holds < 2^32 lanes)
+            yield sl, np.repeat(np.arange(len(c), dtype=np.uint32), c // _PACKET), (np.cumsum(c) - c).astype(np.uint32)
             start = stop
+
+    def _with_indices(self, a):
+        """Return the lanes ``a`` (:class:`_Lanes` of a :meth:`_trace` launch) with each lane's task and sample index
+        (``task``, ``j``): the task of its packet (``tables['packet']``) and its offset from the task's first lane
+        (column ``first``)."""
+        dr, mi = self._dr, self._mi
+        task = dr.gather(mi.UInt32, a.tables["packet"], a.lane >> int(np.log2(_PACKET)))
+        a = replace(a, task=task)
+        return replace(a, j=a.lane - self._col(a, "first"))
 
     def _trace(self, kernel, t, counts):
         """Return the per-lane values (sum(counts),) float32 of ``kernel`` over tasks ``t`` (their lanes laid out task
@@ -613,18 +789,18 @@ class Renderer:
         # each task's lanes start on a packet boundary (the extra lanes, samples past its count, are dropped)
         padded = -(-counts // _PACKET) * _PACKET
         out = []
-        for sl, task, j in self._launches(padded):
-            sub = {k: (None if v is None else v[sl]) for k, v in t.items()}
+        for sl, packet, first in self._launches(padded):
+            sub = dict(_take(t, sl), first=first)
             if sl.stop - sl.start < 2:
                 sub = _pad2(sub)
-            out.append(kernel(sub, host_wrap(self._mi.UInt32, task), host_wrap(self._mi.UInt32, j)).numpy())
+            out.append(self._run(kernel, self._lanes(sub, len(packet) * _PACKET, packet)).numpy())
         vals = out[0] if len(out) == 1 else np.concatenate(out)
         if np.array_equal(padded, counts):
             return vals
         return vals[np.repeat(np.tile([True, False], len(counts)), np.column_stack([counts, padded - counts]).ravel())]
 
     # -- where the analytic well lets light through (aperture split, see _rounds)
-    def _well_rect(self, t, task, d, key="ap"):
+    def _well_rect(self, a, d, key="ap"):
         """Return (x0, x1, y0, y1, lit) for unit directions ``d``: the rectangle of the diode
         (fractions of its sides, centred, so within [-1/2, 1/2]) whose rays toward ``d`` leave
         through the opening of the diode's analytic well (``simcore.shapes.aperture.WellAperture``
@@ -632,21 +808,20 @@ class Renderer:
         the lit fraction. ``key``: "ap" (the split's and the probes' rectangle) or "ap_hint" (the albedo
         proposal's)."""
         dr, mi = self._dr, self._mi
-        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
+        fr = [self._vec(a, "frame", k) for k in range(3)]
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
-        rims = [dr.gather(mi.Float, host_array(mi.Float, t[key][:, k]), task)
-                for k in range(8)]          # half diode; half opening and height of the lower and top rims
+        rims = [self._col(a, key, k) for k in range(8)]  # half diode; half opening and height of the lower and top rims
         return lit_rectangle_of(rims, du, dv, dn, maximum=dr.maximum, minimum=dr.minimum, where=dr.select)
 
-    def _split_point(self, t, task, d, fx, fy):
+    def _split_point(self, a, d, fx, fy):
         """Return (fx, fy, weight) of the diode point for a lane of mode 0 (plain: the point as
         drawn, weight 1), 1 (inside the analytic well's lit rectangle: the point mapped into it,
         weight = its area) or 2 (the rest: the point as drawn, weight 0 inside the rectangle)."""
         dr, mi = self._dr, self._mi
         if not self.control_variate:
             return fx, fy, mi.Float(1.0)
-        mode = dr.gather(mi.UInt32, host_array(mi.UInt32, t["mode"]), task)
-        x0, x1, y0, y1, lit = self._well_rect(t, task, d)
+        mode = self._col(a, "mode")
+        x0, x1, y0, y1, lit = self._well_rect(a, d)
         in_a = mode == 1
         gx = dr.select(in_a, x0 + (x1 - x0) * (fx + 0.5), fx)
         gy = dr.select(in_a, y0 + (y1 - y0) * (fy + 0.5), fy)
@@ -655,7 +830,7 @@ class Renderer:
         return gx, gy, wgt
 
     # -- a window over the diode (simcore.shapes.window): one helper for the kernels
-    def _window_exit(self, t, task, o, d, fx, fy, u):
+    def _window_exit(self, a, o, d, fx, fy, u):
         """Return (exit point, weight, length of the segment to the lower face, has a window) for light reaching
         the diode point ``o`` (at fractions ``fx``, ``fy`` of its sides) from unit directions ``d`` (body frame)
         through the task's window, one uniform ``u`` per lane: the slab's terms k = 0..K (K the last whose exit
@@ -665,15 +840,14 @@ class Renderer:
         geometric law by inversion) and the weight is the partial sum (mean over s and p): unbiased, and
         exact whatever k is drawn when nothing shades the window. Tasks without a window: (o, 1, 0, False)."""
         dr, mi = self._dr, self._mi
-        n_i, th, gap, hx, hy, alpha, sx, sy, has = (dr.gather(mi.Float, host_array(mi.Float, t["win"][:, i]), task)
-                                                    for i in range(9))
-        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
+        n_i, th, gap, hx, hy, alpha, sx, sy, has = (self._col(a, "win", i) for i in range(9))
+        fr = [self._vec(a, "frame", k) for k in range(3)]
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
         c = dr.maximum(dn, 1e-12)
         ct = dr.sqrt(dr.maximum(1.0 - (du * du + dv * dv) / (n_i * n_i), 0.0))     # cos theta_t
         rs = dr.square((c - n_i * ct) / (c + n_i * ct))
         rp = dr.square((ct - n_i * c) / (ct + n_i * c))
-        a = dr.exp(-alpha * th / dr.maximum(ct, 1e-12))
+        att = dr.exp(-alpha * th / dr.maximum(ct, 1e-12))          # one pass through the slab
         g_c, inner = gap / c, th / (n_i * dr.maximum(ct, 1e-12))  # lateral walk per unit |d_uv|: to p1, per pass
 
         def k_axis(dx, half, x):
@@ -686,9 +860,9 @@ class Renderer:
         K = dr.maximum(dr.minimum(k_axis(du, hx, fx * sx), k_axis(dv, hy, fy * sy)), -1.0)
 
         def partial(r):
-            q = dr.maximum(dr.square(r * a), 1e-30)
+            q = dr.maximum(dr.square(r * att), 1e-30)
             qK = dr.exp((K + 1.0) * dr.log(q))
-            return q, qK, dr.square(1.0 - r) * a * (1.0 - qK) / (1.0 - q)
+            return q, qK, dr.square(1.0 - r) * att * (1.0 - qK) / (1.0 - q)
 
         qs, qKs, Ss = partial(rs)
         qp, qKp, Sp = partial(rp)
@@ -705,20 +879,20 @@ class Renderer:
         weight = dr.select(win, dr.select(K >= 0.0, 0.5 * tot, 0.0), 1.0)
         return dr.select(win, exit_, o), weight, dr.select(win, g_c, 0.0), win
 
-    def _through_window(self, t, task, o, d, fx, fy, u, active=True):
+    def _through_window(self, a, o, d, fx, fy, u, active=True):
         """Return (exit point, weight, blocked) for light reaching the diode point ``o`` (at fractions ``fx``,
         ``fy`` of its sides) from unit directions ``d`` (body frame) through the task's window, one uniform
         ``u`` per lane (:meth:`_window_exit`): blocked when the mesh meets the segment from ``o`` to the
         window's lower face or the ray leaving the upper face at the drawn exit point along ``d``. Tasks
         without a window get (o, 1, the plain ray's test). Lanes not ``active`` trace neither ray (blocked False)."""
-        exit_, weight, seg, win = self._window_exit(t, task, o, d, fx, fy, u)
-        blocked = self._blocked_by_mesh(exit_, d, active)
-        if self._scene is not None:
+        exit_, weight, seg, win = self._window_exit(a, o, d, fx, fy, u)
+        blocked = self._blocked_by_mesh(a, exit_, d, active)
+        if a.scene is not None:
             mi = self._mi
-            blocked |= self._scene.ray_test(mi.Ray3f(mi.Ray3f(o, d), seg), active & win & (seg > 0.0))
+            blocked |= a.scene.ray_test(mi.Ray3f(mi.Ray3f(o, d), seg), active & win & (seg > 0.0))
         return exit_, weight, blocked
 
-    def _window_first_segment(self, scene, t, task, o, d, fx, fy, u):
+    def _window_first_segment(self, scene, a, o, d, fx, fy, u):
         """Return (origin, weight) of a reflected path's first ray from the diode point ``o`` along ``d``: when
         nothing of the path-traced ``scene`` lies between ``o`` and the window's lower face, the light crossed
         the window: the ray starts at the drawn exit point of the upper face and the path carries the slab's
@@ -726,12 +900,12 @@ class Renderer:
         (what reaches that wall through the window is not attenuated by it: the window is traced on the
         diode's own first segment only)."""
         mi, dr = self._mi, self._dr
-        exit_, weight, seg, win = self._window_exit(t, task, o, d, fx, fy, u)
+        exit_, weight, seg, win = self._window_exit(a, o, d, fx, fy, u)
         under = scene.ray_test(mi.Ray3f(mi.Ray3f(o, d), seg), win & (seg > 0.0))
         cross = win & ~under
         return dr.select(cross, exit_, o), dr.select(cross, weight, 1.0)
 
-    def _round_cv(self, t, task, d, fx, fy):
+    def _round_cv(self, a, d, fx, fy):
         """Return the control variate of a round well's lanes (mode 3; 0 for the others): the closed-form lit
         fraction of the diode through the rim's disc toward ``d`` (CircularWell, the Dr.Jit form of
         simcore.shapes.aperture.disc_rectangle_overlap) minus 1 where the lane's diode point (fx, fy) lies in
@@ -740,11 +914,10 @@ class Renderer:
         dr, mi = self._dr, self._mi
         if not (self.control_variate and self._plain.any()):
             return 0.0                      # no round well: the kernels stay as they were
-        mode = dr.gather(mi.UInt32, host_array(mi.UInt32, t["mode"]), task)
-        g = lambda a: dr.gather(mi.Float, host_array(mi.Float, a), task)  # noqa: E731
-        ax, ay = g(t["ap"][:, 0]), g(t["ap"][:, 1])                           # half diode sides, m
-        r, h = g(t["round"][:, 0]), g(t["round"][:, 1])
-        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
+        mode = self._col(a, "mode")
+        ax, ay = self._col(a, "ap", 0), self._col(a, "ap", 1)                # half diode sides, m
+        r, h = self._col(a, "round", 0), self._col(a, "round", 1)
+        fr = [self._vec(a, "frame", k) for k in range(3)]
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
         inv = 1.0 / dr.maximum(dn, 1e-12)
         sx, sy = h * du * inv, h * dv * inv                                   # the ray's offset at the rim
@@ -762,24 +935,26 @@ class Renderer:
         return dr.select((mode == 3) & (dn > 0), lit - dr.select(inside, 1.0, 0.0), 0.0)
 
     # -- direct Sun kernel
-    def _direct_kernel(self, t, task, j):
+    def _direct_kernel(self, a):
         dr, mi = self._dr, self._mi
+        a = self._with_indices(a)
+        task, j = a.task, a.j
         # Strata: the 2 m^2 diamonds (squares turned 45 deg) around the points (k, l) / 2m of
         # the unit torus with k + l even, so that the aperture walls' edges, parallel to the
         # diode's sides, cut many strata obliquely instead of one row of them.
         # (max: lanes past the end of the last SIMD packet gather 0, and x86 traps on x / 0)
-        m = dr.maximum(dr.gather(mi.UInt32, host_array(mi.UInt32, t["m"]), task), 1)
+        m = dr.maximum(self._col(a, "m"), 1)
         h = j >> 1
         row = h // m
         col = ((h - row * m) << 1) + (row & 1)
-        key = dr.gather(mi.UInt32, host_array(mi.UInt32, t["key"]), task)
+        key = self._col(a, "key")
         r = self._rand(key, j, 2)
-        inv = dr.gather(mi.Float, host_array(mi.Float, 0.5 / t["m"]), task)
+        inv = self._col(a, "half_inv_m")
         fx = (mi.Float(col) + r[0] + r[1] - 1.0) * inv
         fy = (mi.Float(row) + r[0] - r[1]) * inv
         fx = fx - dr.floor(fx) - 0.5
         fy = fy - dr.floor(fy) - 0.5
-        s = self._gather3(self._v3(t["sun"]), task)
+        s = self._vec(a, "sun")
         if self.sun_angular_radius_rad > 0:
             # Uniform in solid angle over the disc: 1 - cos a = xi * (1 - cos a_max).
             omc = r[2] * dr.opaque(mi.Float, 2.0 * np.sin(self.sun_angular_radius_rad / 2) ** 2)
@@ -789,29 +964,27 @@ class Renderer:
             d = dr.normalize(s * (1.0 - omc) + sin_a * (dr.cos(phi) * e1 + dr.sin(phi) * e2))
         else:
             d = s
-        fx, fy, wgt = self._split_point(t, task, d, fx, fy)
-        o = (self._gather3(self._v3(t["pos"]), task) + fx * self._gather3(self._v3(t["U"]), task)
-             + fy * self._gather3(self._v3(t["V"]), task))
+        fx, fy, wgt = self._split_point(a, d, fx, fy)
+        o = self._vec(a, "pos") + fx * self._vec(a, "U") + fy * self._vec(a, "V")
         # (the rays of lanes that read 0 whatever they meet are not traced)
         traced = wgt > 0
         behind_earth = None
-        if t["earth"] is not None:
-            c = self._gather3(self._v3(t["earth"]), task)
+        if a.has("earth"):
+            c = self._vec(a, "earth")
             b = dr.dot(d, c)
             perp = c - b * d
             behind_earth = (b > 0) & (dr.squared_norm(perp) < dr.opaque(mi.Float, self.earth_radius_m ** 2))
             traced &= ~behind_earth
         if self.sun_angular_radius_rad > 0:
-            cos_nd = dr.dot(self._gather3(self._v3(t["n"]), task), d)
+            cos_nd = dr.dot(self._vec(a, "n"), d)
             traced &= cos_nd > 0
         if self._win is None:
-            blocked = self._blocked_by_mesh(o, d, traced)
+            blocked = self._blocked_by_mesh(a, o, d, traced)
         else:
             a_, _ = mi.sample_tea_32(key ^ mi.UInt32(_WINDOW_KEY), j, _TEA_ROUNDS)
-            o, tw, blocked = self._through_window(t, task, o, d, fx, fy, mi.Float(a_ >> 8) * (1.0 / 16777216.0),
-                                                  traced)
+            o, tw, blocked = self._through_window(a, o, d, fx, fy, mi.Float(a_ >> 8) * (1.0 / 16777216.0), traced)
             wgt = wgt * tw
-        cv = self._round_cv(t, task, d, fx, fy)
+        cv = self._round_cv(a, d, fx, fy)
         if behind_earth is not None:
             blocked |= behind_earth
             cv = dr.select(behind_earth, 0.0, cv)
@@ -821,17 +994,20 @@ class Renderer:
         return val
 
     # -- albedo kernel
-    def _albedo_kernel(self, t, task, j):
+    def _albedo_kernel(self, a):
         dr, mi = self._dr, self._mi
+        a = self._with_indices(a)
+        task, j = a.task, a.j
         B = _N_T * _N_P
         h = j >> 1
-        key = dr.gather(mi.UInt32, host_array(mi.UInt32, t["key"]), task)
+        key = self._col(a, "key")
         r = self._rand(key, j, 3)
-        inv_m = dr.gather(mi.Float, host_array(mi.Float, 1.0 / t["m"]), task)
+        inv_m = self._col(a, "inv_m")
         u = (mi.Float(h) + r[0]) * inv_m
         # Bin by binary search in the task's inclusive CDF (count of entries <= u).
-        cdf = host_array(mi.Float, t["cdf"])
-        base = task * B
+        cdf = a.tables["cdf"]
+        row = self._col(a, "row")                   # the task's row of the tables
+        base = row * B
         lo = dr.zeros(mi.UInt32, dr.width(task))
         step = B // 2
         while step >= 1:
@@ -839,65 +1015,65 @@ class Renderer:
             lo = dr.select(probe <= u, lo + step, lo)
             step //= 2
         b = dr.minimum(lo, B - 1)
-        pmf = dr.gather(mi.Float, host_array(mi.Float, t["pmf"]), base + b)
+        pmf = dr.gather(mi.Float, a.tables["pmf"], base + b)
         bt = b >> int(np.log2(_N_P))
         bp = b & (_N_P - 1)
-        xmax = dr.gather(mi.Float, host_array(mi.Float, t["xmax"]), task)
-        edges = host_array(mi.Float, t["tedge"])
-        t0 = dr.gather(mi.Float, edges, task * (_N_T + 1) + bt)
-        dt = dr.gather(mi.Float, edges, task * (_N_T + 1) + bt + 1) - t0
-        g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
+        xmax = self._col(a, "xmax")
+        edges = a.tables["tedge"]
+        t0 = dr.gather(mi.Float, edges, row * (_N_T + 1) + bt)
+        dt = dr.gather(mi.Float, edges, row * (_N_T + 1) + bt + 1) - t0
+        g3 = lambda k: self._vec(a, k)  # noqa: E731
         d = self._cap_direction(g3("w"), g3("e1"), g3("e2"), xmax, t0 + dt * r[1],
                                 (mi.Float(bp) + r[2]) * (2.0 * np.pi / _N_P))
-        fx, fy, wgt = self._split_point(t, task, d, r[3] - 0.5, r[4] - 0.5)
+        fx, fy, wgt = self._split_point(a, d, r[3] - 0.5, r[4] - 0.5)
         o = g3("pos") + fx * g3("U") + fy * g3("V")
         cos_d = dr.dot(g3("n"), d)
-        rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
-        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot)
+        rot = [self._vec(a, "rot", k) for k in range(3)]
+        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot, a.tables["refl"])
         ok = hit & (cos_sun > 0) & (cos_d > 0)
         # (the rays of lanes that read 0 whatever they meet are not traced)
         if self._win is None:
-            blocked = self._blocked_by_mesh(o, d, ok & (wgt > 0))
+            blocked = self._blocked_by_mesh(a, o, d, ok & (wgt > 0))
         else:
-            o, tw, blocked = self._through_window(t, task, o, d, fx, fy, r[5], ok & (wgt > 0))
+            o, tw, blocked = self._through_window(a, o, d, fx, fy, r[5], ok & (wgt > 0))
             wgt = wgt * tw
-        f = dr.select(blocked, 0.0, wgt) + self._round_cv(t, task, d, fx, fy)
+        f = dr.select(blocked, 0.0, wgt) + self._round_cv(a, d, fx, fy)
         # f / q with q = pmf_b / Omega_b, Omega_b = 2 pi xmax dt / N_P; L = rho E cos_sun / pi
         return dr.select(ok, f * rho * cos_sun * cos_d * (2.0 / _N_P) * xmax * dt / pmf, 0.0)
 
     # -- reflected kernel: paths from the diode off the spacecraft's BSDFs (module docstring)
-    def _reflected_kernel(self, t, task, j):
-        """Return the per-lane ``reflected`` irradiance (W/m^2) of tasks ``t``: a wavefront, one launch per
+    def _reflected_kernel(self, a):
+        """Return the per-lane ``reflected`` irradiance (W/m^2) of tasks ``a`` (:class:`_Lanes`): a wavefront, one launch per
         path vertex, whose code does not depend on the depth (it is compiled once and reused); after each
         launch the paths still in flight are compacted (most leave the spacecraft at once)."""
         dr, mi = self._dr, self._mi
+        a = self._with_indices(a)
+        task, j = a.task, a.j
         n_lanes = dr.width(task)
         total = dr.zeros(mi.Float, n_lanes)
         lane = dr.arange(mi.UInt32, n_lanes)
         scene = self._pt
         D = self.max_depth
         n_pairs = 2 + 4 * D + 4                       # TEA calls per lane (2 floats each)
-        a = self.sun_angular_radius_rad if self.sun_angular_radius_rad > 0 else SUN_ANGULAR_RADIUS_RAD
-        omc_max = 2.0 * np.sin(a / 2) ** 2            # 1 - cos a
+        a_sun = self.sun_angular_radius_rad if self.sun_angular_radius_rad > 0 else SUN_ANGULAR_RADIUS_RAD
+        omc_max = 2.0 * np.sin(a_sun / 2) ** 2        # 1 - cos a
         p_sun = 1.0 / (2.0 * np.pi * omc_max)         # uniform in solid angle over the disc
-        has_earth = t["earth"] is not None
-        do_albedo = "rot" in t
+        has_earth = a.has("earth")
+        do_albedo = a.has("rot")
         ctx = mi.BSDFContext()
 
         def env():
             """Per-lane task data (gathered anew in each launch)."""
-            g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
-            v = dict(key=dr.gather(mi.UInt32, host_array(mi.UInt32, t["key"]), task), s=g3("sun"), pos=g3("pos"),
-                     E=dr.gather(mi.Float, host_array(mi.Float, t["E"]), task))
+            g3 = lambda k: self._vec(a, k)  # noqa: E731
+            v = dict(key=self._col(a, "key"), s=g3("sun"), pos=g3("pos"), E=self._col(a, "E"))
             # disc radiance: int L cos(d, s) dOmega = E  =>  L = E / (Omega (1 + cos a) / 2)
             v["L_sun"] = v["E"] * dr.opaque(mi.Float, 2.0 * p_sun / (2.0 - omc_max))
             if has_earth:
                 v["c0"] = g3("earth")                 # Earth's centre from the diode's centre
             if do_albedo:
                 v.update(s_e=g3("sun_e"), w=g3("w"), e1=g3("e1"), e2=g3("e2"),
-                         E_e=dr.gather(mi.Float, host_array(mi.Float, t["E_e"]), task),
-                         xmax=dr.gather(mi.Float, host_array(mi.Float, t["xmax"]), task),
-                         rot=[self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)])
+                         E_e=self._col(a, "E_e"), xmax=self._col(a, "xmax"),
+                         rot=[self._vec(a, "rot", k) for k in range(3)])
                 v["p_earth"] = 1.0 / (2.0 * np.pi * v["xmax"])   # uniform in solid angle over the cap
             return v
 
@@ -944,23 +1120,23 @@ class Renderer:
 
         # ---- launch 0: the diode point, the first direction and the mirror-image strategy
         v = env()
-        m = dr.maximum(dr.gather(mi.UInt32, host_array(mi.UInt32, t["m"]), task), 1)
+        m = dr.maximum(self._col(a, "m"), 1)
         h = j >> 1
         row = h // m
         col = ((h - row * m) << 1) + (row & 1)
         r = rand(v, 0, 2)
-        inv = dr.gather(mi.Float, host_array(mi.Float, 0.5 / t["m"]), task)
+        inv = self._col(a, "half_inv_m")
         fx = (mi.Float(col) + r[0] + r[1] - 1.0) * inv
         fy = (mi.Float(row) + r[0] - r[1]) * inv
         fx = fx - dr.floor(fx) - 0.5
         fy = fy - dr.floor(fy) - 0.5
-        fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(3)]
-        o = v["pos"] + fx * self._gather3(self._v3(t["U"]), task) + fy * self._gather3(self._v3(t["V"]), task)
+        fr = [self._vec(a, "frame", k) for k in range(3)]
+        o = v["pos"] + fx * self._vec(a, "U") + fy * self._vec(a, "V")
         # first direction: the hit-table proposal mixed with cosine-weighted sampling (_hit_table)
         B = _HIT_NT * _HIT_NP
         hit = self._hit
-        kk = dr.gather(mi.UInt32, host_array(mi.UInt32, t["k"]), task)
-        beta = dr.gather(mi.Float, host_array(mi.Float, hit["beta"][t["k"]]), task)
+        kk = self._col(a, "k")
+        beta = self._col(a, "beta")
         cos_edges = host_array(mi.Float, np.cos(hit["th_e"]))
         omega = host_array(mi.Float, hit["omega"])
         rx = rand(v, 5 + 4 * D, 1)
@@ -1004,7 +1180,7 @@ class Renderer:
             # a window over the diode: the first segment crosses it (directions stay; origin and weight change)
             uw = [mi.Float(x >> 8) * (1.0 / 16777216.0)
                   for x in mi.sample_tea_32(v["key"] ^ mi.UInt32(_WINDOW_KEY), j, _TEA_ROUNDS)]
-            o0, tw = self._window_first_segment(scene, t, task, o, d, fx, fy, uw[0])
+            o0, tw = self._window_first_segment(scene, a, o, d, fx, fy, uw[0])
             thr0 = thr0 * tw
         acc = mi.Float(0.0)
         if planes is not None:
@@ -1024,7 +1200,7 @@ class Renderer:
             on = cos_m > 0
             o_m, tw_m = o, mi.Float(1.0)
             if self._win is not None:
-                o_m, tw_m = self._window_first_segment(scene, t, task, o, dm, fx, fy, uw[1])
+                o_m, tw_m = self._window_first_segment(scene, a, o, dm, fx, fy, uw[1])
             si_m = scene.ray_intersect(mi.Ray3f(o_m, dm), on)
             on &= si_m.is_valid()
             bs_m, w_m = si_m.bsdf().sample(ctx, si_m, rs[3], mi.Point2f(rs[4], rs[5]), on)
@@ -1061,7 +1237,7 @@ class Renderer:
                 acc += dr.select(in_sun, thr * v["L_sun"] * dr.select(st["delta"], w_delta,
                                                                       power(st["pdf"], mi.Float(p_sun))), 0.0)
                 if do_albedo:
-                    hit_e, cos_sun, rho = self._earth_along(st["d"], c, v["s_e"], v["rot"])
+                    hit_e, cos_sun, rho = self._earth_along(st["d"], c, v["s_e"], v["rot"], a.tables["refl"])
                     ok = out & hit_e & (cos_sun > 0)
                     L_e = rho * v["E_e"] * cos_sun * (1.0 / np.pi)
                     acc += dr.select(ok, thr * L_e * dr.select(st["delta"], 1.0, power(st["pdf"], v["p_earth"])), 0.0)
@@ -1083,7 +1259,7 @@ class Renderer:
             # (b) the Earth: a direction uniform in its cap
             if do_albedo:
                 de = self._cap_direction(v["w"], v["e1"], v["e2"], v["xmax"], r[2], r[3] * (2.0 * np.pi))
-                hit_e, cos_sun, rho = self._earth_along(de, c, v["s_e"], v["rot"])
+                hit_e, cos_sun, rho = self._earth_along(de, c, v["s_e"], v["rot"], a.tables["refl"])
                 f, pdf = bsdf.eval_pdf(ctx, si, si.to_local(de), active)
                 ok = active & hit_e & (cos_sun > 0) & (f[0] > 0)
                 ok &= ~scene.ray_test(mi.Ray3f(spawn(si, de), de), ok)
@@ -1115,13 +1291,15 @@ class Renderer:
                 lane, task, j = (dr.gather(mi.UInt32, x, pad) for x in (lane, task, j))
             st["acc"] = dr.zeros(mi.Float, dr.width(lane))
             dr.eval(st, lane, task, j)
+            a = replace(a, task=task, j=j)       # env() reads the live lanes' tasks
         # irradiance = int L cos dOmega = pi E[L] for directions drawn with density cos / pi
         return total * np.pi
 
     # -- the Earth seen along a direction: shared by the albedo kernel and its proposal
-    def _earth_along(self, d, c, s, rot):
+    def _earth_along(self, d, c, s, rot, refl):
         """Return (hit, cos of the Sun at the Earth point, reflectivity there) for unit
-        directions ``d`` from a point at ``-c`` from the Earth's centre (body axes)."""
+        directions ``d`` from a point at ``-c`` from the Earth's centre (body axes); ``refl``: the reflectivity
+        map as a Dr.Jit array (the renderer's, passed in so that frozen kernels see it as an input)."""
         dr, mi = self._dr, self._mi
         nlat, nlon = self.reflectivity.shape
         R = self.earth_radius_m
@@ -1139,7 +1317,7 @@ class Renderer:
         col = mi.Int32(dr.floor((lon - self.lon_west_rad) * (nlon / (2.0 * np.pi))))
         col = dr.select(col < 0, col + nlon, col)
         col = dr.clip(dr.select(col >= nlon, col - nlon, col), 0, nlon - 1)
-        rho = dr.gather(mi.Float, self._refl_dr, mi.UInt32(row * nlon + col))
+        rho = dr.gather(mi.Float, refl, mi.UInt32(row * nlon + col))
         return hit, cos_sun, rho
 
     def _cap_direction(self, w, e1, e2, xmax, t01, phi):
@@ -1151,38 +1329,38 @@ class Renderer:
         return dr.normalize((1.0 - x) * w + sin_t * (dr.cos(phi) * e1 + dr.sin(phi) * e2))
 
     # -- the albedo proposal: radiance x diode cosine x aperture fraction at bin corners/centres
-    def _proposal_kernel(self, t, n_points):
+    def _proposal_kernel(self, a, n_points):
+        """Return the proposal's weights (T n_points,) at the bins' corners of tasks ``a`` (:class:`_Lanes`
+        whose ``j`` counts the lanes 0 .. T n_points - 1, ``n_points`` per task)."""
         dr, mi = self._dr, self._mi
-        T = len(t["key"])
-        i = dr.arange(mi.UInt32, T * n_points)
+        i = a.lane
         task = i // n_points
+        a = replace(a, task=task)
         p = i - task * n_points
         it = p // (_N_P + 1)                             # bin corners: (N_T + 1) x (N_P + 1)
         ip = p - it * (_N_P + 1)
-        t01 = dr.gather(mi.Float, host_array(mi.Float, t["tedge"]),
-                        task * (_N_T + 1) + it)
+        t01 = dr.gather(mi.Float, a.tables["tedge"], self._col(a, "row") * (_N_T + 1) + it)
         phi = mi.Float(ip) * (2.0 * np.pi / _N_P)
-        g3 = lambda k: self._gather3(self._v3(t[k]), task)  # noqa: E731
-        d = self._cap_direction(g3("w"), g3("e1"), g3("e2"),
-                                dr.gather(mi.Float, host_array(mi.Float, t["xmax"]), task), t01, phi)
-        rot = [self._gather3(self._v3(t["rot"][:, k]), task) for k in range(3)]
-        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot)
-        lit = self._well_rect(t, task, d, "ap_hint")[4]
+        g3 = lambda k: self._vec(a, k)  # noqa: E731
+        d = self._cap_direction(g3("w"), g3("e1"), g3("e2"), self._col(a, "xmax"), t01, phi)
+        rot = [self._vec(a, "rot", k) for k in range(3)]
+        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot, a.tables["refl"])
+        lit = self._well_rect(a, d, "ap_hint")[4]
         dn = dr.dot(g3("n"), d)
         # cos_sun widened by ~half a bin on the ground, so that bins the terminator crosses
         # between their corners keep their weight
-        cos_sun = cos_sun + dr.gather(mi.Float, host_array(mi.Float, t["margin"]), task)
+        cos_sun = cos_sun + self._col(a, "margin")
         ok = hit & (cos_sun > 0) & (dn > 0)
         f = dr.abs(rho) * cos_sun * dn * lit
-        if self._vis is not None:
+        if "vis" in a.tables:
             # what the rest of the satellite hides from this diode (_visibility_table)
-            fr = [self._gather3(self._v3(t["frame"][:, k]), task) for k in range(2)]
+            fr = [self._vec(a, "frame", k) for k in range(2)]
             row = dr.clip(mi.Int32(dr.acos(dr.clip(dn, -1.0, 1.0)) * (_VIS_NT / (0.5 * np.pi))), 0, _VIS_NT - 1)
             col = mi.Int32((dr.atan2(dr.dot(fr[1], d), dr.dot(fr[0], d)) + np.pi) * (_VIS_NP / (2.0 * np.pi)))
             col = dr.clip(col, 0, _VIS_NP - 1)
-            k = mi.Int32(dr.gather(mi.UInt32, host_array(mi.UInt32, t["k"]), task))
-            f *= dr.gather(mi.Float, self._vis, mi.UInt32((k * _VIS_NT + row) * _VIS_NP + col))
-        return dr.select(ok, f, 0.0).numpy().reshape(T, n_points)
+            k = mi.Int32(self._col(a, "k"))
+            f *= dr.gather(mi.Float, a.tables["vis"], mi.UInt32((k * _VIS_NT + row) * _VIS_NP + col))
+        return dr.select(ok, f, 0.0)
 
     def _visibility_table(self):
         """Return the (K * _VIS_NT * _VIS_NP,) table (Dr.Jit Float) that shapes the albedo sampling: per
@@ -1429,15 +1607,19 @@ class Renderer:
         return dict(prop, pmf=pmf.astype(np.float32), cdf=cdf.astype(np.float32))
 
     def _trace_tasks(self, kernel, t, n_points):
-        """Return ``kernel(t, n_points)`` (T, n_points) for the tasks ``t`` in launches of bounded size."""
+        """Return ``kernel(lanes, n_points)`` (T, n_points) for the tasks ``t`` in launches of bounded size."""
         T = len(t["key"])
         if T < 2:
             return self._trace_tasks(kernel, _pad2(t), n_points)[:T]
+        t = dict(t, **self._tables(t))
         per = max(2, _MAX_LANES // n_points)
         n = -(-T // per)
         edges = np.linspace(0, T, n + 1).round().astype(int)
-        return np.concatenate([kernel({k: (None if v is None else v[a:b]) for k, v in t.items()}, n_points)
-                               for a, b in zip(edges[:-1], edges[1:])])
+        out = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            lanes = self._lanes(_take(t, slice(a, b)), (b - a) * n_points)
+            out.append(self._run(kernel, lanes, n_points).numpy().reshape(b - a, n_points))
+        return np.concatenate(out)
 
     # -- task assembly
     def _tasks(self, ep, dk, sun, earth, keys=None):
@@ -1684,7 +1866,7 @@ class Renderer:
         idx = np.concatenate([p[1] for p in parts])
         lanes = np.concatenate([p[2] for p in parts]).astype(np.int64)
         mode = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
-        t = {k: (None if v is None else v[idx]) for k, v in base.items()}
+        t = _take(base, idx)
         t["key"] = _mix32(seed, g_[idx], k_[idx], kind, rnd, mode)
         t["mode"] = mode
         t["m"] = _strata_param(kind != _ALBEDO, lanes)
@@ -1719,6 +1901,7 @@ class Renderer:
         base = self._tasks(e_, k_, sun, earth, None)
         base["rot"] = rot[e_]
         base.update(self._albedo_proposal(dict(base, key=np.zeros(len(e_), np.uint32))))
+        base.update(self._tables(base))
         m, se, dof, n = self._rounds(self._albedo_kernel, base, _ALBEDO, g_, k_, seed, n0, rel, floor, cap, E[e_],
                                      _albedo_size, 2.0)
         out["am"][e_, k_], out["ase"][e_, k_], out["adof"][e_, k_], n_used[e_, k_] = m, se, dof, n
@@ -1727,6 +1910,7 @@ class Renderer:
         """Path-trace ``n`` samples of the ``reflected`` component for tasks (e_, k_) into ``out``."""
         base = self._tasks(e_, k_, sun, earth, None)
         base["E"] = E[e_]
+        base["beta"] = self._hit["beta"][k_]         # the first direction's cosine-weighted share (_hit_table)
         if earth_alb is not None:
             base["rot"] = rot[e_]
             base["sun_e"] = sun_e[e_]
@@ -1912,7 +2096,13 @@ def _pad2(t):
     literal baked into the kernel, so every new value would compile a new kernel)."""
     if len(t["key"]) >= 2:
         return t
-    return {k: (None if v is None else np.concatenate([v, v])) for k, v in t.items()}
+    return {k: (np.concatenate([v, v]) if isinstance(v, np.ndarray) else v) for k, v in t.items()}
+
+
+def _take(t, idx):
+    """Return the task dict ``t`` of the tasks ``idx`` (indices or a slice): its numpy fields indexed, the rest (None,
+    and the tables uploaded once for all its tasks, Renderer._tables) as they are."""
+    return {k: (v[idx] if isinstance(v, np.ndarray) else v) for k, v in t.items()}
 
 
 def _shortfall(mean, se, n, rel, floor, power):

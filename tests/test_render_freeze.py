@@ -1,0 +1,137 @@
+"""The renderer's frozen kernels (drjit.freeze, simcore.render.irradiance.Renderer._run) give what tracing gives.
+
+The oracle is Dr.Jit's ordinary path: the same kernels traced anew at every launch (freezing switched off with
+``JitFlag.KernelFreezing``). A replay runs the recorded kernels on new inputs of other sizes (other epochs, task
+counts, sample counts), so the two agree bit for bit only if every input the values depend on reaches the
+recording as an input and the launch sizes follow the inputs, which is what this checks.
+"""
+
+import numpy as np
+import pytest
+
+from scenes.config import SatelliteConfig
+from scenes.meshes import build_satellite_mesh
+from simcore._llvm import import_drjit
+from simcore.render.irradiance import SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer
+
+_ARRAYS = ("direct_w_m2", "direct_se_w_m2", "direct_samples", "direct_dof",
+           "albedo_w_m2", "albedo_se_w_m2", "albedo_samples", "albedo_dof")
+
+
+def _epochs(n, seed):
+    """Return (sun (n, 3), Earth's centre (n, 3) m, R_ecef_from_body (n, 3, 3)): random attitudes, 700 km up."""
+    rng = np.random.default_rng(seed)
+    sun = rng.normal(size=(n, 3))
+    sun /= np.linalg.norm(sun, axis=1, keepdims=True)
+    down = rng.normal(size=(n, 3))
+    down /= np.linalg.norm(down, axis=1, keepdims=True)
+    q, _ = np.linalg.qr(rng.normal(size=(n, 3, 3)))
+    return sun, 7.07e6 * down, q
+
+
+def _render(cfg, frozen, sun, earth, rot, **kw):
+    """Return (RenderResult, Renderer) of ``cfg`` rendered with freezing on or off."""
+    dr = import_drjit()
+    flag = dr.flag(dr.JitFlag.KernelFreezing)
+    dr.set_flag(dr.JitFlag.KernelFreezing, frozen)
+    try:
+        rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg),
+                        sun_angular_radius_rad=kw.pop("sun_angular_radius_rad", 0.0))
+        res = rend.render(sun, earth, rot, **kw)
+    finally:
+        dr.set_flag(dr.JitFlag.KernelFreezing, flag)
+    return res, rend
+
+
+@pytest.mark.parametrize("disc", [0.0, SUN_ANGULAR_RADIUS_RAD])
+def test_frozen_kernels_equal_traced_ones_bit_for_bit(disc):
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    sun, earth, rot = _epochs(40, seed=3)
+    # 8 epochs a batch with target accuracies: launches of many sizes (tasks, samples) per kernel
+    kw = dict(seed=7, batch_epochs=8, rel_se_direct=0.002, rel_se_albedo=0.01, sun_angular_radius_rad=disc)
+    got, rend = _render(cfg, True, sun, earth, rot, **dict(kw))
+    ref, traced = _render(cfg, False, sun, earth, rot, **dict(kw))
+    # each kernel recorded once and replayed for every later launch (else this would compare tracing with itself);
+    # the reference traced every launch (recorded nothing)
+    assert {k: f.n_recordings for k, f in rend._frozen.items()} == {
+        "_direct_kernel": 1, "_albedo_kernel": 1, "_proposal_kernel": 1}
+    assert all(f.n_recordings == 0 for f in traced._frozen.values())
+    assert np.all(got.direct_samples[got.direct_w_m2 > 0] > 0) and got.albedo_samples.sum() > 0
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+
+
+def test_frozen_kernels_with_windows_and_round_wells_and_the_plain_estimate():
+    # the kernels' other code paths: a cover glass over each diode, round wells (the disc control variate), and
+    # hint=False (no aperture split); each a layout of its own inputs, recorded and replayed as such
+    cfg = SatelliteConfig.from_dict({"layout": {"pattern": "thesis14", "tilt_deg": 20, "fov_deg": 70, "window": {
+        "index": 1.5, "thickness_mm": 0.5, "gap_mm": 0.5, "size_mm": [6.5, 6.5]}}})
+    sun, earth, rot = _epochs(24, seed=5)
+    kw = dict(seed=2, batch_epochs=6, direct_samples=256, albedo_samples=64)
+    got, _ = _render(cfg, True, sun, earth, rot, **dict(kw))
+    ref, _ = _render(cfg, False, sun, earth, rot, **dict(kw))
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    from importlib.resources import files
+    rw = SatelliteConfig.load(files("scenes") / "examples" / "round_wells.toml")
+    got, _ = _render(rw, True, sun, earth, rot, hint=False, **dict(kw))
+    ref, _ = _render(rw, False, sun, earth, rot, hint=False, **dict(kw))
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    got, _ = _render(rw, True, sun, earth, rot, **dict(kw))
+    ref, _ = _render(rw, False, sun, earth, rot, **dict(kw))
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+
+
+def test_a_renderer_with_other_settings_records_its_own_kernels():
+    # the renderer's settings that shape the traced code are part of the recordings' key (Renderer._kernel_state):
+    # changing one on a renderer that has recorded its kernels records them anew, and the values follow
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    sun, earth, rot = _epochs(16, seed=11)
+    kw = dict(seed=4, batch_epochs=8, direct_samples=256, albedo_samples=64)
+    rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg))
+    rend.render(sun, earth, rot, **kw)
+    rend.sun_angular_radius_rad = SUN_ANGULAR_RADIUS_RAD
+    got = rend.render(sun, earth, rot, **kw)
+    assert rend._frozen["_direct_kernel"].n_recordings == 2
+    ref, _ = _render(cfg, False, sun, earth, rot, sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD, **dict(kw))
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+
+
+def test_a_kernel_whose_lanes_are_all_constant_follows_the_launch_size():
+    # A bare diode and no mesh, point Sun: every direct lane reads 1 and the tracer folds the kernel's result to a
+    # constant; replayed for a batch of another size it must still have that batch's lanes (Renderer._run anchors
+    # it on the lanes' counter). The oracle: E_sun cos(theta) exactly (a bare plate), and the traced kernels.
+    from simcore.constants import E_SUN_W_M2
+    from simcore.shapes.aperture import diode_frame
+    ds = DiodeSurfaces(np.zeros((1, 3)), diode_frame(np.array([0.0, 0.0, 1.0]))[None], [0.01, 0.01])
+    th = np.radians(np.arange(0, 90))
+    sun = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)
+    rend = Renderer(ds)
+    got = rend.render(sun, batch_epochs=64)                    # batches of 64 and 26 epochs
+    assert rend._frozen["_direct_kernel"].n_recordings == 1
+    np.testing.assert_allclose(got.direct_w_m2[:, 0], E_SUN_W_M2 * np.cos(th), rtol=1e-6, atol=0)
+
+
+def test_a_dropped_renderer_is_freed_at_once():
+    # The frozen wrappers hold the renderer weakly: were it in a reference cycle, only the cycle collector would
+    # free it, at any time, possibly inside another frozen recording, where releasing its numpy-backed Dr.Jit
+    # arrays aborts the process (Dr.Jit 1.5, "enqueue_host_func(): this function cannot be recorded!").
+    import gc
+    import weakref
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    sun, earth, rot = _epochs(8, seed=1)
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg))
+        rend.render(sun, earth, rot, direct_samples=64, albedo_samples=16)
+        assert len(rend._frozen) == 3
+        ref = weakref.ref(rend)
+        del rend
+        assert ref() is None
+    finally:
+        if enabled:
+            gc.enable()
