@@ -68,8 +68,10 @@ def test_frozen_kernels_with_windows_and_round_wells_and_the_plain_estimate():
         "index": 1.5, "thickness_mm": 0.5, "gap_mm": 0.5, "size_mm": [6.5, 6.5]}}})
     sun, earth, rot = _epochs(24, seed=5)
     kw = dict(seed=2, batch_epochs=6, direct_samples=256, albedo_samples=64)
-    got, _ = _render(cfg, True, sun, earth, rot, **dict(kw))
+    got, rend = _render(cfg, True, sun, earth, rot, **dict(kw))
     ref, _ = _render(cfg, False, sun, earth, rot, **dict(kw))
+    # each kernel recorded once and replayed for the later launches (else this compares tracing with tracing)
+    assert rend._frozen and all(f.n_recordings == 1 for f in rend._frozen.values())
     for name in _ARRAYS:
         np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
     from importlib.resources import files
@@ -98,6 +100,49 @@ def test_a_renderer_with_other_settings_records_its_own_kernels():
     ref, _ = _render(cfg, False, sun, earth, rot, sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD, **dict(kw))
     for name in _ARRAYS:
         np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+
+
+def test_one_renderer_through_the_calls_of_a_run_gives_the_traced_values():
+    # sunsim run calls one renderer chunk after chunk, each time the full render and then the check's hint-free
+    # direct estimate on a subset of epochs (epoch_index, albedo=False, hint=False, reflected=False, more samples);
+    # a study without the Earth renders the direct Sun alone; and a renderer's map may start at another longitude.
+    # Every call on the frozen renderer gives what a renderer tracing every launch gives, bit for bit.
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    sun, earth, rot = _epochs(24, seed=13)
+    dr = import_drjit()
+    flag = dr.flag(dr.JitFlag.KernelFreezing)
+    results = {}
+    try:
+        for frozen in (True, False):
+            dr.set_flag(dr.JitFlag.KernelFreezing, frozen)
+            rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg),
+                            sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD)
+            out = []
+            for start in (0, 12):
+                sl = slice(start, start + 12)
+                out.append(rend.render(sun[sl], earth[sl], rot[sl], seed=5, epoch_offset=start, batch_epochs=8,
+                                       rel_se_direct=0.002, rel_se_albedo=0.01))
+                pick = np.array([1, 4, 9])
+                out.append(rend.render(sun[sl][pick], earth[sl][pick], rot[sl][pick], seed=5,
+                                       epoch_index=start + pick, albedo=False, hint=False, reflected=False,
+                                       direct_samples=1024))
+            out.append(rend.render(sun, seed=6, direct_samples=256))                # no Earth
+            rend.lon_west_rad += 0.3
+            out.append(rend.render(sun, earth, rot, seed=7, direct_samples=144, albedo_samples=64))
+            results[frozen] = out
+            if frozen:
+                counts = {k: f.n_recordings for k, f in rend._frozen.items()}
+    finally:
+        dr.set_flag(dr.JitFlag.KernelFreezing, flag)
+    # replayed, not recorded at every call: the direct kernel once per layout of its inputs (with the Earth,
+    # without), the albedo and proposal kernels once and again after the map's longitude changed
+    assert counts["_direct_kernel"] <= 4 and counts["_albedo_kernel"] == 2 and counts["_proposal_kernel"] == 2
+    for i, (got, ref) in enumerate(zip(results[True], results[False])):
+        for name in _ARRAYS:
+            g, r = getattr(got, name), getattr(ref, name)
+            if g is None and r is None:
+                continue
+            np.testing.assert_array_equal(g, r, err_msg=f"call {i}: {name}")
 
 
 def test_a_kernel_whose_lanes_are_all_constant_follows_the_launch_size():

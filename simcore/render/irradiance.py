@@ -92,9 +92,11 @@ why that is sound): every array a kernel reads must therefore reach it through i
 array or a Dr.Jit array held elsewhere), and a renderer setting that changes the traced code belongs in
 ``Renderer._kernel_state``. The values are bit for bit those of tracing every launch (tests/test_render_freeze.py).
 """
+import contextlib
 from dataclasses import dataclass, field, replace
 import gc
 import os
+import threading
 import weakref
 
 import numpy as np
@@ -613,6 +615,10 @@ class Renderer:
         once for all of them, and ``row`` (T,): each task's row, the column the kernels read the tables at
         (whatever round or launch the task's lanes fall in: a round repeats a task in two groups, and the tables
         are ~4 kB a task)."""
+        if any(t.get(k) is not None and not isinstance(t[k], np.ndarray) for k in _TABLES):
+            # (tables already uploaded: their rows are those of the tasks they were uploaded for, which a subset's
+            # new row numbers would no longer match)
+            raise ValueError("_tables takes the tasks' numpy tables, not tables already uploaded")
         out = {k: host_array(self._mi.Float, t[k]) for k in _TABLES if isinstance(t.get(k), np.ndarray)}
         out["row"] = np.arange(len(t["k"]), dtype=np.uint32)
         return out
@@ -699,13 +705,8 @@ class Renderer:
                 anchored, state_fn=lambda *a, **k: state_ref()(*a, **k))
         # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
         # arrays, released inside the frozen call, would abort the process as above.
-        enabled = gc.isenabled()
-        gc.disable()
-        try:
+        with _no_cycle_collection():
             return frozen(lanes, *args)
-        finally:
-            if enabled:
-                gc.enable()
 
     def _kernel_state(self, *args, **kwargs):
         """Return the renderer's settings that shape the traced direct, albedo and proposal kernels (part of their
@@ -744,7 +745,7 @@ class Renderer:
         """Return whether the ray from ``o`` along ``d`` meets the mesh (``a.scene``, :class:`_Lanes`); False for
         lanes not ``active`` (those whose value cannot depend on it: their rays are not traced)."""
         if a.scene is None:
-            return self._dr.zeros(self._mi.Bool, self._dr.width(o))
+            return self._mi.Bool(False)       # (a scalar, no array of a recorded launch's width)
         return a.scene.ray_test(self._mi.Ray3f(o, d), active)
 
     # -- lanes: task k owns counts[k] consecutive lanes (its samples), split into launches
@@ -1008,7 +1009,7 @@ class Renderer:
         cdf = a.tables["cdf"]
         row = self._col(a, "row")                   # the task's row of the tables
         base = row * B
-        lo = dr.zeros(mi.UInt32, dr.width(task))
+        lo = mi.UInt32(0)                   # (a scalar: it widens to the lanes' with the first select)
         step = B // 2
         while step >= 1:
             probe = dr.gather(mi.Float, cdf, base + lo + (step - 1))
@@ -1141,7 +1142,7 @@ class Renderer:
         omega = host_array(mi.Float, hit["omega"])
         rx = rand(v, 5 + 4 * D, 1)
         loc = mi.warp.square_to_cosine_hemisphere(mi.Point2f(r[2], r[3]))
-        lo = dr.zeros(mi.UInt32, dr.width(task))
+        lo = mi.UInt32(0)                   # (a scalar: it widens to the lanes' with the first select)
         step = 1 << int(np.ceil(np.log2(B)))
         while step >= 1:
             idx = dr.minimum(lo + (step - 1), B - 1)
@@ -2072,6 +2073,29 @@ def _strata_param(direct, counts):
     if direct:
         return np.round(np.sqrt(counts / 4.0))
     return counts / 2.0
+
+
+_GC_GUARD = threading.Lock()
+_GC_STATE = {"depth": 0, "was_enabled": False}
+
+
+@contextlib.contextmanager
+def _no_cycle_collection():
+    """Switch Python's cycle collector off for the duration (Renderer._run's frozen calls), and back on when the last
+    of the threads inside such a block leaves it, if it was on before the first entered (a plain disable/enable per
+    call would let one thread's exit switch it on while another records)."""
+    with _GC_GUARD:
+        if _GC_STATE["depth"] == 0:
+            _GC_STATE["was_enabled"] = gc.isenabled()
+            gc.disable()
+        _GC_STATE["depth"] += 1
+    try:
+        yield
+    finally:
+        with _GC_GUARD:
+            _GC_STATE["depth"] -= 1
+            if _GC_STATE["depth"] == 0 and _GC_STATE["was_enabled"]:
+                gc.enable()
 
 
 def _task_mean_var(vals, counts):
