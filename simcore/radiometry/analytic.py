@@ -379,10 +379,11 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         a = a0
         if body_box is not None:
             if box_above[k] is None:
-                a = dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
+                a = _box_term(k, a0, bx, by, bz)
             else:
-                a = dr.if_stmt(args=(k, a0, bx, by, bz), cond=box_above[k][0] * bx + box_above[k][1] * by
-                               + box_above[k][2] * bz < 0.0, true_fn=_box_term, false_fn=lambda k, a0, *_: a0)
+                pn = box_above[k]
+                a = dr.if_stmt(args=(k, a0, bx, by, bz), cond=pn[0] * bx + pn[1] * by + pn[2] * bz < 0.0,
+                               true_fn=_box_term, false_fn=lambda k, a0, *_: a0)
         if comp is None:
             return (acc + wt * a,)
         part, alt, *box = more
@@ -401,6 +402,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         return (acc + wt * a, part, alt, *box)
 
     def _box_term(k, a0, bx, by, bz):
+        # the response with the body box's slab test from the diode's centre
         return dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
 
     def _marked_share(k, a0, a, wt, du, dv, dn, part, alt):
