@@ -225,3 +225,27 @@ def test_half_plane_shadow_fails_on_a_wrong_box():
                     assert abs(wrong - right) > 1e-4
                     found += 1
     assert found > 10
+
+
+def test_shadow_edges_on_the_wells_edges():
+    # Shadow edges that fall exactly on (or within rounding of) an edge of the lit rectangle, or on each other:
+    # a diode whose side lies in the plane of a box face, Sun directions with zero components (the box's faces
+    # then project to lines parallel to the rectangle's sides, several of the shadow's half-planes coincide).
+    # Dyadic sizes make the coincidences exact. Oracle: the hull-and-clip construction above, to 1e-12.
+    from simcore.shapes.aperture import WellAperture
+    a = 2.0 ** -10
+    half = np.array([0.0625, 0.0625, 0.125])
+    ap = WellAperture(2 * a, 2 * a, 2 * a, 2 * a, 0.0)
+    frame = np.eye(3)                                   # u = x, v = y, n = z
+    n_partial = 0
+    for py in (0.0625 - a, 0.0625, 0.0625 + a, 0.0625 - 2 * a, 0.0):
+        for px in (0.0625 + a, 0.0625 + 2 * a, 0.07):
+            pos = np.array([px, py, 0.0])
+            for d in ([-0.6, 0.0, 0.8], [-0.6, -0.0, 0.8], [-0.8, 0.0, 0.6], [-0.48, -0.36, 0.8],
+                      [-0.48, 0.36, 0.8], [0.0, -0.6, 0.8], [-1.0, 0.0, 2.0 ** -20], [-0.6, 1e-17, 0.8]):
+                d = np.array(d) / np.linalg.norm(d)
+                ours = lit_fraction_with_box(ap, frame, pos, d, half)
+                theirs = _hull_clip_lit(ap, [list(r) for r in frame], list(pos), list(d), half)
+                assert ours == pytest.approx(theirs, abs=1e-12), (px, py, d)
+                n_partial += 0.0 < theirs < 1.0
+    assert n_partial >= 10

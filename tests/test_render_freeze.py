@@ -180,3 +180,47 @@ def test_a_dropped_renderer_is_freed_at_once():
     finally:
         if enabled:
             gc.enable()
+
+
+def test_a_second_thread_tracing_kernels_beside_a_recording_changes_nothing():
+    # sunsim run computes the direct-Sun reference (the body box's shadow, a Dr.Jit kernel traced at every call:
+    # simcore.shapes.occlusion) in its worker thread while the main thread records and replays the renderer's
+    # frozen kernels. Dr.Jit records in the recording thread's own state; this checks that neither side sees the
+    # other's work: the render recorded beside the other thread, and each box result, equal those computed alone,
+    # bit for bit.
+    import threading
+
+    from simcore.shapes.occlusion import lit_fractions_with_box
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    sun, earth, rot = _epochs(40, seed=11)
+    kw = dict(seed=5, batch_epochs=8, rel_se_direct=0.002, rel_se_albedo=0.01)
+    rng = np.random.default_rng(4)
+    k = rng.integers(0, 12, 5000)
+    d = rng.normal(size=(5000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    box = (np.array([a.rims for a in cfg.apertures])[k], np.asarray(cfg.frames)[k], np.asarray(cfg.positions_m)[k],
+           d, np.asarray(cfg.body.size_m) / 2)
+    alone = lit_fractions_with_box(*box)
+    assert 0.01 < np.mean((alone > 0) & (alone < 1))        # shadows that cross the wells: the kernel's area
+    ref, _ = _render(cfg, True, sun, earth, rot, **dict(kw))
+    beside, stop, failed = [], threading.Event(), []
+
+    def worker():
+        try:
+            while not stop.is_set():
+                beside.append(lit_fractions_with_box(*box))
+        except BaseException as e:       # (reported below: an exception in a thread would pass silently)
+            failed.append(e)
+    t = threading.Thread(target=worker)
+    t.start()
+    try:
+        got, rend = _render(cfg, True, sun, earth, rot, **dict(kw))
+    finally:
+        stop.set()
+        t.join()
+    assert not failed, failed
+    assert len(beside) >= 2 and {f.n_recordings for f in rend._frozen.values()} == {1}
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    for b in beside:
+        np.testing.assert_array_equal(b, alone)

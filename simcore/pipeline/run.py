@@ -359,7 +359,8 @@ class PreparedRun:
     def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True, box_albedo=False):
         """Return the analytic irradiance of epochs ``sl`` on ``reflectivity_map``; ``mesh``: the albedo with
         the traced :attr:`visibility` where shadows cross the diodes (the check's reference). The direct Sun
-        alone (``albedo=False``) is numpy only: it may run in another thread while Dr.Jit renders."""
+        alone (``albedo=False``) is numpy and the body box's shadow kernel (traced, never frozen): it may run in
+        another thread while the renderer records and replays its frozen kernels (Dr.Jit records per thread)."""
         g = self.geometry
         out = diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
                                self.config.frames, self.config.apertures, map=reflectivity_map,
@@ -434,8 +435,10 @@ class PreparedRun:
     @functools.cached_property
     def worker(self):
         """Return the one worker thread that computes the direct reference (numpy, which releases the GIL
-        in its loops) and writes finished chunks while the main thread renders: on few cores it fills the
-        core that the renderer's Python parts leave idle. Nothing it runs touches Dr.Jit."""
+        in its loops, and the body box's shadow as a traced Dr.Jit kernel) and writes finished chunks while the
+        main thread renders: on few cores it fills the core that the renderer's Python parts leave idle. It
+        freezes nothing (a frozen function records in its own thread; see
+        tests/test_render_freeze.py, the second thread's test)."""
         return concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="sunsim-worker")
 
     def render_chunk(self, start, stop):

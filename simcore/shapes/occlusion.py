@@ -10,9 +10,10 @@ normal) can be blocked; tilted diodes look that far past the panel edge
 For the direct Sun the lit area of a diode is computed exactly: the set of
 diode-plane points whose ray toward ``d`` hits the box is the projection
 along ``d`` of the part of the box in front of the diode plane, a convex
-polygon; it is clipped against the lit rectangle of the well (the diode
-square intersected with the opening shifted by ``-h (d_u, d_v)/d_n``, see
-:mod:`simcore.shapes.aperture`) and its area subtracted. For albedo the centre of
+polygon; the area of its intersection with the lit rectangle of the well (the
+diode square intersected with the opening shifted by ``-h (d_u, d_v)/d_n``, see
+:mod:`simcore.shapes.aperture`) is subtracted, taken by Green's theorem in a
+Dr.Jit kernel (float64). For albedo the centre of
 the diode stands for the whole diode (a slab test per Earth cell), which is
 exact to first order for the straight shadow edges of a box.
 
@@ -21,6 +22,7 @@ renderer sees them.
 """
 import numpy as np
 
+from simcore import _llvm
 from simcore.shapes.aperture import lit_rectangle_of
 
 
@@ -63,48 +65,124 @@ def convex_hull(points):
     return lower[:-1] + upper[:-1]
 
 
-def _clip_half_plane(poly, count, a, b, c):
-    """Return (poly, count) of convex polygons (T, V, 2) with ``count`` (T,) vertices each, clipped to
-    the half-planes ``a x + b y <= c`` (T,) (Sutherland-Hodgman, all polygons at once; those the
-    half-plane holds whole, most of them, are left as they are)."""
-    T, V = poly.shape[:2]
-    idx = np.arange(V)[None, :]
-    valid = idx < count[:, None]
-    f = a[:, None] * poly[..., 0] + b[:, None] * poly[..., 1] - c[:, None]
-    rows = np.flatnonzero((valid & (f > 0)).any(axis=1))
-    if rows.size == 0:
-        return poly, count
-    p0, f0, ok, n = poly[rows], f[rows], valid[rows], count[rows]
-    nxt = np.where(idx + 1 < n[:, None], idx + 1, 0)
-    p1 = np.take_along_axis(p0, nxt[..., None], axis=1)
-    f1 = np.take_along_axis(f0, nxt, axis=1)
-    keep = ok & (f0 <= 0)
-    cut = ok & ((f0 <= 0) != (f1 <= 0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(cut, f0 / np.where(cut, f0 - f1, 1.0), 0.0)
-    cand = np.stack([p0, p0 + s[..., None] * (p1 - p0)], axis=2).reshape(len(rows), 2 * V, 2)
-    mask = np.stack([keep, cut], axis=2).reshape(len(rows), 2 * V)
-    slot = np.cumsum(mask, axis=1) - 1                       # where each kept point goes, in order
-    width = V + 1                                            # a convex clip adds at most one vertex
-    out = np.zeros((T, width, 2))
-    out[:, :V] = poly
-    clipped = np.zeros((len(rows), width + 1, 2))
-    r, k = np.nonzero(mask)
-    clipped[r, slot[r, k]] = cand[r, k]
-    out[rows] = clipped[:, :width]
-    count = count.copy()
-    count[rows] = mask.sum(axis=1)
-    return out, count
+def _lit_with_box_kernel(table, n_rims, d):
+    """Return Dr.Jit Float64 (T,) twice: the lit fraction of T (diode, direction) pairs with the body box's
+    shadow taken out (:func:`lit_fractions_with_box`), and without it (the well's own), from one Dr.Jit kernel.
+    ``table(c)``: column ``c`` of each pair's diode row (2 + 3 ``n_rims`` aperture parameters, then the frame
+    rows u, v, n, the position and the box's half extents, 3 each); ``d`` (3,) the directions' components."""
+    dr = _llvm.import_drjit()
+    from drjit.llvm import Float64 as F
+    n_ap = 2 + 3 * n_rims
+    ax, ay = table(0), table(1)
+    u, v, n, p, half = ([table(n_ap + 3 * r + i) for i in range(3)] for r in range(5))
+    du = d[0] * u[0] + d[1] * u[1] + d[2] * u[2]
+    dv = d[0] * v[0] + d[1] * v[1] + d[2] * v[2]
+    dn = d[0] * n[0] + d[1] * n[1] + d[2] * n[2]
+    front = dn > 0
+    inv_n = 1.0 / dr.select(front, dn, 1.0)
+    x0, x1, y0, y1 = -ax, ax, -ay, ay
+    for r in range(n_rims):                                     # each rim, shifted along the direction
+        wx, wy, h = table(2 + 3 * r), table(3 + 3 * r), table(4 + 3 * r)
+        sx, sy = -h * du * inv_n, -h * dv * inv_n
+        x0, x1 = dr.maximum(x0, sx - wx), dr.minimum(x1, sx + wx)
+        y0, y1 = dr.maximum(y0, sy - wy), dr.minimum(y1, sy + wy)
+    lit = dr.select(front, dr.maximum(x1 - x0, 0.0) * dr.maximum(y1 - y0, 0.0), 0.0)
+    # Constraints alpha X + beta Y + gamma t <= c on (X, Y, t): the box's faces +-e_k (the face the direction runs
+    # toward bounds t from above, gamma >= 0; its opposite from below), and t >= 0.
+    s = [dr.select(d[k] >= 0, 1.0, -1.0) for k in range(3)]
+    upper = [(s[k] * u[k], s[k] * v[k], s[k] * d[k], half[k] - s[k] * p[k]) for k in range(3)]
+    lower = [(-s[k] * u[k], -s[k] * v[k], -s[k] * d[k], half[k] + s[k] * p[k]) for k in range(3)]
+    lower.append((F(0.0), F(0.0), -dr.select(front, dn, 1.0), F(0.0)))
+    # gi <= 0: t >= (ci - ai X - bi Y) / gi;  gj >= 0: t <= (cj - aj X - bj Y) / gj. A face's bound against its
+    # opposite face's (i == j) reads 0 X + 0 Y <= 2 half |d_k| exactly (the products cancel): it holds everywhere.
+    planes = [(ai * gj - aj * gi, bi * gj - bj * gi, ci * gj - cj * gi)
+              for i, (ai, bi, gi, ci) in enumerate(lower) for j, (aj, bj, gj, cj) in enumerate(upper) if i != j]
+    # Most lit rectangles lie wholly outside the shadow (a half-plane excludes all four corners) or wholly inside
+    # it (every half-plane holds all four); only packets of lanes with others, which a shadow edge crosses, take
+    # the area.
+    holds_all, excludes_all = lit > 0, lit <= 0
+    for a, b, c in planes:     # the largest and smallest of a X + b Y over the rectangle's corners
+        ax0, ax1, by0, by1 = a * x0, a * x1, b * y0, b * y1
+        holds_all &= dr.maximum(ax0, ax1) + dr.maximum(by0, by1) <= c
+        excludes_all |= dr.minimum(ax0, ax1) + dr.minimum(by0, by1) > c
+    crossed = dr.if_stmt(args=(x0, x1, y0, y1, *[x for pl in planes for x in pl]), cond=~holds_all & ~excludes_all,
+                         true_fn=_bounded_area, false_fn=lambda *_: F(0.0))
+    shadow = dr.select(holds_all, lit, crossed)
+    return (dr.select(front, dr.maximum(lit - shadow, 0.0) / (4 * ax * ay), 0.0),
+            lit / (4 * ax * ay))
 
 
-def _polygon_area(poly, count):
-    """Return the areas (T,) of polygons (T, V, 2) with ``count`` vertices each (shoelace; 0 below 3)."""
-    V = poly.shape[1]
-    idx = np.arange(V)[None, :]
-    nxt = np.where(idx + 1 < count[:, None], idx + 1, 0)
-    p1 = np.take_along_axis(poly, nxt[..., None], axis=1)
-    cross = np.where(idx < count[:, None], poly[..., 0] * p1[..., 1] - p1[..., 0] * poly[..., 1], 0.0)
-    return np.where(count >= 3, 0.5 * np.abs(cross.sum(axis=1)), 0.0)
+def _bounded_area(x0, x1, y0, y1, *planes):
+    """Return the area of the rectangle [x0, x1] x [y0, y1] cut by the half-planes a X + b Y <= c (``planes``:
+    a, b, c of each in turn), a convex polygon, by Green's theorem over its boundary (Dr.Jit arrays).
+
+    The part of line i (a_i X + b_i Y = c_i, the interior on the left of e_i = (-b_i, a_i)) inside every other
+    half-plane is p_i + t e_i, p_i = c_i (a_i, b_i) / (a_i^2 + b_i^2), for t in [t0, t1], an interval whose ends
+    are a max and a min over the other lines; that edge adds (x dy - y dx) / 2 = (t1 - t0) cross(p_i, e_i) / 2
+    = c_i (t1 - t0) / 2 to the area. No vertex list is built, so nothing is compacted."""
+    dr = _llvm.import_drjit()
+    from drjit.llvm import Float64 as F
+    one, zero = F(1.0), F(0.0)
+    lines = [(one, zero, x1), (-one, zero, -x0), (zero, one, y1), (zero, -one, -y0)]
+    lines += [planes[i:i + 3] for i in range(0, len(planes), 3)]
+    norm = [dr.sqrt(a * a + b * b) for a, b, _ in lines]
+    # each line's signed distance from the origin (+-inf for a "line" 0 X + 0 Y <= c: everywhere or nowhere)
+    offset = [dr.select(r > 0, c / dr.select(r > 0, r, 1.0), dr.select(c >= 0, dr.inf, -dr.inf))
+              for (_, _, c), r in zip(lines, norm)]
+    area = F(0.0)
+    for i, (ai, bi, ci) in enumerate(lines):
+        q = ai * ai + bi * bi
+        k = ci / dr.select(q > 0, q, 1.0)
+        t0, t1 = F(-dr.inf), F(dr.inf)
+        empty = q <= 0
+        for j, (aj, bj, cj) in enumerate(lines):
+            if j == i:
+                continue
+            g = ai * bj - aj * bi                  # a_j . e_i
+            dot = ai * aj + bi * bj
+            # Lines within 1e-9 rad of parallel are taken as parallel (moving the area by at most ~1e-9 of the
+            # rectangle's): the other half-plane holds all of line i or none of it, decided by comparing the two
+            # distances, the same numbers from either side, so a line met twice counts once (the inner one, or
+            # the earlier of two equal ones) and a strip's two sides count both or neither. (Cut where they
+            # cross instead, two nearly equal lines would split their common edge at two points computed apart.)
+            par = dr.abs(g) <= 1e-9 * norm[i] * norm[j]
+            bound = (cj - dot * k) / dr.select(par, 1.0, g)    # (c_j - a_j . p_i) / (a_j . e_i)
+            t1 = dr.select(~par & (g > 0), dr.minimum(t1, bound), t1)
+            t0 = dr.select(~par & (g < 0), dr.maximum(t0, bound), t0)
+            keep = dr.select(dot > 0, (offset[j] > offset[i]) | ((offset[j] == offset[i]) & (j > i)),
+                             offset[i] + offset[j] >= 0)
+            empty |= par & ~keep
+        area += dr.select(~empty & (t1 > t0), 0.5 * ci * (t1 - t0), 0.0)
+    return area
+
+
+def _box_pairs(table, diode, d):
+    """Return ((T,), (T,)) numpy: :func:`_lit_with_box_kernel` for T pairs, diode ``diode[t]`` (a row of ``table``
+    (K, C): the kernel's columns) toward the direction ``d[t]`` (T, 3)."""
+    T = len(d)
+    if T == 0:
+        return np.zeros(0), np.zeros(0)
+    if T == 1:                       # (a one-lane array would be folded into the kernel as a literal)
+        return tuple(x[:1] for x in _box_pairs(table, np.repeat(diode, 2), np.repeat(d, 2, axis=0)))
+    dr = _llvm.import_drjit()
+    from drjit.llvm import Float64, UInt32
+    n_cols = table.shape[1]
+    rows = _llvm.host_array(Float64, table)
+    row = _llvm.host_array(UInt32, diode) * n_cols      # the kernel's code depends on neither T nor K
+    dirs = _llvm.host_array(Float64, d)
+    lane = dr.arange(UInt32, T) * 3
+    with_box, own = _lit_with_box_kernel(lambda c: dr.gather(Float64, rows, row + c), (n_cols - 17) // 3,
+                                         [dr.gather(Float64, dirs, lane + i) for i in range(3)])
+    dr.eval(with_box, own)
+    return np.asarray(with_box.numpy(), dtype=float), np.asarray(own.numpy(), dtype=float)
+
+
+def _table(aperture_params, frames, positions_m, half_m):
+    """Return (K, C): the rows :func:`_lit_with_box_kernel` reads for K diodes."""
+    ap = np.asarray(aperture_params, float).reshape(len(frames), -1)
+    K = len(ap)
+    return np.concatenate([ap, np.asarray(frames, float).reshape(K, 9), np.asarray(positions_m, float).reshape(K, 3),
+                           np.broadcast_to(np.asarray(half_m, float), (K, 3))], axis=1)
 
 
 def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m):
@@ -119,58 +197,14 @@ def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m)
     A point ``x = (X, Y)`` of the diode plane is shadowed when its ray ``p + X u + Y v + t d`` meets
     the box at some ``t >= 0``. Each face of the box and the plane itself (``t >= 0``) bound ``t`` from
     one side by a linear function of ``x``; eliminating ``t`` (Fourier-Motzkin) leaves the shadow as
-    the intersection of the 12 half-planes "every lower bound <= every upper bound". The lit
-    rectangle of the well is clipped by them and its area is the shadowed part.
+    the intersection of the 12 half-planes "every lower bound <= every upper bound" (9 of them: a face's
+    bound against its opposite face's holds everywhere). The shadowed part of the well's lit rectangle
+    is the convex polygon those and the rectangle's sides bound; its area is taken by Green's theorem
+    (:func:`_bounded_area`), in one Dr.Jit kernel (float64) over all T.
     """
-    ap = np.asarray(aperture_params, float)
-    F = np.asarray(frames, float)
-    p = np.asarray(positions_m, float)
-    d = np.asarray(d_body, float)
-    half = np.asarray(half_m, float)
-    T = len(d)
-    u, v, n = F[:, 0], F[:, 1], F[:, 2]
-    du, dv, dn = (np.einsum("tj,tj->t", d, w) for w in (u, v, n))
-    ax, ay = ap.T[:2]
-    front = dn > 0
-    x0, x1, y0, y1 = -ax, ax, -ay, ay
-    for wx, wy, h in (ap.T[2:5], ap.T[5:8]) if ap.shape[1] > 5 else (ap.T[2:5],):     # each rim, shifted
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sx = np.where(front, -h * du / np.where(front, dn, 1.0), 0.0)
-            sy = np.where(front, -h * dv / np.where(front, dn, 1.0), 0.0)
-        x0, x1 = np.maximum(x0, sx - wx), np.minimum(x1, sx + wx)
-        y0, y1 = np.maximum(y0, sy - wy), np.minimum(y1, sy + wy)
-    lit = np.where(front, np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None), 0.0)
-    poly = np.stack([np.stack([x0, y0], 1), np.stack([x1, y0], 1), np.stack([x1, y1], 1), np.stack([x0, y1], 1)], 1)
-    count = np.where(lit > 0, 4, 0)
-    # Constraints alpha X + beta Y + gamma t <= c on (X, Y, t): the box's faces +-e_k (the face the
-    # direction runs toward bounds t from above, gamma >= 0; its opposite from below), and t >= 0.
-    s = np.where(d >= 0, 1.0, -1.0)                                     # (T, 3)
-    upper = [(s[:, k] * u[:, k], s[:, k] * v[:, k], s[:, k] * d[:, k], half[k] - s[:, k] * p[:, k]) for k in range(3)]
-    lower = [(-s[:, k] * u[:, k], -s[:, k] * v[:, k], -s[:, k] * d[:, k], half[k] + s[:, k] * p[:, k])
-             for k in range(3)]
-    zero = np.zeros(T)
-    lower.append((zero, zero, -np.where(front, dn, 1.0), zero))
-    # gi <= 0: t >= (ci - ai X - bi Y) / gi;  gj >= 0: t <= (cj - aj X - bj Y) / gj. A face's bound against
-    # its opposite face's (i == j) reads 0 X + 0 Y <= 2 half |d_k| exactly (the products cancel bit for bit):
-    # it holds everywhere and is left out.
-    planes = [(ai * gj - aj * gi, bi * gj - bj * gi, ci * gj - cj * gi)
-              for i, (ai, bi, gi, ci) in enumerate(lower) for j, (aj, bj, gj, cj) in enumerate(upper) if i != j]
-    # Most lit rectangles lie wholly outside the shadow (a half-plane excludes all four corners: nothing to
-    # clip) or wholly inside it (every half-plane holds all four: the whole rectangle is shadowed); only
-    # the others, which a shadow edge crosses, are clipped.
-    holds_all, excludes_all = lit > 0, lit <= 0
-    for a, b, c in planes:     # the largest and smallest of a X + b Y over the rectangle's corners
-        ax0, ax1, by0, by1 = a * x0, a * x1, b * y0, b * y1
-        holds_all &= np.maximum(ax0, ax1) + np.maximum(by0, by1) <= c
-        excludes_all |= np.minimum(ax0, ax1) + np.minimum(by0, by1) > c
-    shadow = np.where(holds_all, lit, 0.0)
-    todo = np.flatnonzero(~holds_all & ~excludes_all)
-    if todo.size:
-        poly, count = poly[todo], count[todo]
-        for a, b, c in planes:
-            poly, count = _clip_half_plane(poly, count, a[todo], b[todo], c[todo])
-        shadow[todo] = _polygon_area(poly, count)
-    return np.where(front, np.clip(lit - shadow, 0.0, None) / (4 * ax * ay), 0.0)
+    d = np.asarray(d_body, float).reshape(-1, 3)
+    table = _table(aperture_params, frames, positions_m, half_m)
+    return _box_pairs(table, np.arange(len(d)), d)[0]
 
 
 def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
@@ -185,16 +219,18 @@ def _aperture_params(apertures):
     return np.array([a.rims for a in apertures])
 
 
-def _visibility_below(params, frames, positions_m, d, half_m):
-    """Return (T,): lit fraction with the box over the well's own lit fraction for T diodes (``params``
-    (T, 8), ``frames`` (T, 3, 3), ``positions_m`` (T, 3)) each toward its own direction ``d`` (T, 3) below
-    its panel and in front of it; NaN where the well itself lets no light through."""
-    dd = np.einsum("tij,tj->ti", frames, d)                     # the directions in the diode frames
+def _visibility_below(table, diode, d):
+    """Return (T,): lit fraction with the box over the well's own lit fraction for T pairs, diode ``diode[t]`` (a
+    row of ``table``, :func:`_table`) toward the direction ``d[t]`` (T, 3) below its panel and in front of it; NaN
+    where the well itself lets no light through."""
+    with_box = _box_pairs(table, diode, d)[0]
+    n_ap = table.shape[1] - 15
+    dd = np.einsum("tij,tj->ti", table[diode, n_ap:n_ap + 9].reshape(-1, 3, 3), d)     # the directions in the diode frames
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        own = lit_rectangle_of(params.T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
+        own = lit_rectangle_of(table[diode, :n_ap].T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
     vis = np.full(len(d), np.nan)
     lit = own > 0
-    vis[lit] = lit_fractions_with_box(params[lit], frames[lit], positions_m[lit], d[lit], half_m) / own[lit]
+    vis[lit] = with_box[lit] / own[lit]
     return vis
 
 
@@ -212,9 +248,8 @@ def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, hal
     if not todo.any():
         return vis
     n_idx, k_idx = np.nonzero(todo)
-    frames = np.asarray(frames, float)
-    vis[n_idx, k_idx] = _visibility_below(_aperture_params(apertures)[k_idx], frames[k_idx],
-                                          np.asarray(positions_m, float)[k_idx], d[n_idx], half_m)
+    vis[n_idx, k_idx] = _visibility_below(_table(_aperture_params(apertures), frames, positions_m, half_m), k_idx,
+                                          d[n_idx])
     return vis
 
 
@@ -230,6 +265,5 @@ def pair_visibility(apertures, frames, positions_m, panel_normals, diode, d_body
     front = np.einsum("tj,tj->t", d, frames[k, 2]) > 0
     t = np.flatnonzero(below & front)
     if t.size:
-        vis[t] = _visibility_below(_aperture_params(apertures)[k[t]], frames[k[t]],
-                                   np.asarray(positions_m, float)[k[t]], d[t], half_m)
+        vis[t] = _visibility_below(_table(_aperture_params(apertures), frames, positions_m, half_m), k[t], d[t])
     return vis
