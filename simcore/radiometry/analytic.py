@@ -363,6 +363,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     fr = frames.tolist()
     ops = _DrJitOps(dr, 1e-30 if precision == "single" else 1e-300)
     kernels = [_resp.kernel(r) for r in responses]
+    dark_behind = [isinstance(r, _DARK_BEHIND) for r in responses]
     base = lane_row * n_lon
     # A diode centred on or beyond its panel's face (the panel normal a body axis) meets the box only along
     # directions below the panel's plane: along the others the slab test's exit along that axis is at t <= 0
@@ -422,8 +423,15 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     def _unmarked_share(k, a0, a, wt, du, dv, dn, part, alt):
         return part, alt + wt * a, a
 
-    def _no_term(a0, wt, bx, by, bz, du, dv, dn, *acc):
+    def _no_term(wt, bx, by, bz, du, dv, dn, *acc):
         return acc
+
+    def _seen_term(k, wt, bx, by, bz, du, dv, dn, *acc):
+        a0 = kernels[k](du, dv, dn, ops)
+        # the body's shadow and the visible shares only where the diode sees the cell: a packet of lanes
+        # that all read 0 skips them (a branch in the kernel), ~20 % of this kernel's time
+        return dr.if_stmt(args=(a0, wt, bx, by, bz, du, dv, dn, *acc), cond=a0 > 0,
+                          true_fn=functools.partial(_diode_term, k), false_fn=lambda a0, *rest: _no_term(*rest))
 
     def cond(t, *acc):
         return t < lane_count
@@ -449,13 +457,15 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             du = f[0][0] * bx + f[0][1] * by + f[0][2] * bz
             dv = f[1][0] * bx + f[1][1] * by + f[1][2] * bz
             dn = f[2][0] * bx + f[2][1] * by + f[2][2] * bz
-            a0 = kernels[k](du, dv, dn, ops)
-            state = (a0, wt, bx, by, bz, du, dv, dn, acc[k],
+            state = (wt, bx, by, bz, du, dv, dn, acc[k],
                      *((acc[K + k], acc[2 * K + k]) + ((acc[3 * K + k],) if box_sum else ()) if comp else ()))
-            # the body's shadow and the visible shares only where the diode sees the cell: a packet of lanes
-            # that all read 0 skips them (a branch in the kernel), ~20 % of this kernel's time
-            out = dr.if_stmt(args=state, cond=a0 > 0, true_fn=functools.partial(_diode_term, k),
-                             false_fn=_no_term)
+            if dark_behind[k]:
+                # the response is exactly 0 behind the diode: a packet of lanes that all look at cells behind it
+                # skips the response too (a branch in the kernel)
+                out = dr.if_stmt(args=state, cond=dn > 0.0, true_fn=functools.partial(_seen_term, k),
+                                 false_fn=_no_term)
+            else:
+                out = _seen_term(k, *state)
             new.append(out[0])
             if comp is not None:
                 part.append(out[1])
