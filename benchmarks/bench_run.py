@@ -14,6 +14,12 @@ Last line: one JSON object with run_ms_per_epoch, render_ms_per_epoch and ratio,
 the ratio by up to +-0.4 from one measurement to the next (it slows one figure and not the other):
 ``--repeat N`` makes the same measurement N times, each in a fresh process (both figures as cold as
 in one), and its last line holds the medians (the ratio: the median of the N ratios) and every ratio.
+
+Imports are in neither figure: simcore's, Mitsuba's and Dr.Jit's happen before the timing, and so do the
+ones xarray makes lazily when the run builds and writes its dataset (with dask installed, as by the test
+and sweep extras, xarray imports dask and distributed to look for dask arrays and schedulers: ~0.65 s once
+per process, 0.11 ms per epoch of a one-orbit run, that a plain install does not pay). The benchmark makes
+them first by writing a two-value dataset the way the run writes its file, and prints how long they took.
 """
 import argparse
 import contextlib
@@ -40,6 +46,7 @@ def main_bench(argv=None):
         return repeated(a)
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
+        t_imports = lazy_imports(tmp)
         run_args = ["run", "-o", os.path.join(tmp, "run.nc")]
         if a.duration is not None:
             run_args += ["--duration", str(a.duration)]
@@ -68,10 +75,21 @@ def main_bench(argv=None):
           f"{out.getvalue().splitlines()[2].strip() if len(out.getvalue().splitlines()) > 2 else ''})")
     print(f"renderer alone:  {t_render:7.1f} s = {1e3 * t_render / n:6.2f} ms per epoch")
     print(f"ratio run / render: {t_run / t_render:.2f}")
-    print(f"load average (1 min) at the start: {load_before:.2f} on {os.cpu_count()} cores")
+    print(f"load average (1 min) at the start: {load_before:.2f} on {os.cpu_count()} cores; "
+          f"xarray's lazy imports {t_imports:.2f} s, before both")
     print(json.dumps({"epochs": n, "run_ms_per_epoch": round(1e3 * t_run / n, 3),
                       "render_ms_per_epoch": round(1e3 * t_render / n, 3), "ratio": round(t_run / t_render, 3),
                       "load_at_start": round(load_before, 2)}))
+
+
+def lazy_imports(tmp):
+    """Return the seconds it takes to make the imports xarray makes lazily the first time it builds and writes a
+    dataset (see the module's docstring), made here by writing a two-value dataset as the run writes its file."""
+    import numpy as np
+    import xarray as xr
+    t0 = time.perf_counter()
+    xr.Dataset({"x": ("t", np.zeros(2))}).to_netcdf(os.path.join(tmp, "imports.nc"), engine="h5netcdf")
+    return time.perf_counter() - t0
 
 
 def repeated(a):
