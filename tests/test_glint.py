@@ -1,0 +1,192 @@
+"""Ocean sun glint (simcore.radiometry.glint): the Cox-Munk BRDF against closed forms and independent quadratures."""
+import numpy as np
+import pytest
+
+from simcore.errors import InvalidInputError
+from simcore.radiometry import glint as gl
+
+N_WATER = 1.33
+
+
+def _fresnel_snell(theta_i_rad, n=N_WATER):
+    """Unpolarised Fresnel reflectance from Snell's law and the s/p amplitude ratios (Born & Wolf sec. 1.5.2),
+    written apart from the module's closed form."""
+    ti = np.maximum(np.asarray(theta_i_rad, float), 1e-9)   # (0/0 at normal incidence: its limit below)
+    tt = np.arcsin(np.sin(ti) / n)
+    rs = np.sin(ti - tt) / np.sin(ti + tt)
+    rp = np.tan(ti - tt) / np.tan(ti + tt)
+    return np.where(ti > 1e-6, 0.5 * (rs ** 2 + rp ** 2), ((n - 1) / (n + 1)) ** 2)
+
+
+def _hemispherical(theta_s_deg, mss, index=N_WATER, n_mu=1000, n_phi=1024):
+    """Return integral over the upper hemisphere of f(s, v) cos(theta_v) d omega_v: Gauss-Legendre in
+    cos(theta_v) times the midpoint rule in azimuth (the lobe is ~2 sigma = 20 deg wide at 7 m/s: hundreds
+    of nodes across it)."""
+    th = np.radians(theta_s_deg)
+    s = np.array([np.sin(th), 0.0, np.cos(th)])
+    x, w = np.polynomial.legendre.leggauss(n_mu)
+    mu, w_mu = 0.5 * (x + 1.0), 0.5 * w
+    phi = (np.arange(n_phi) + 0.5) * (2 * np.pi / n_phi)
+    MU, PH = np.meshgrid(mu, phi, indexing="ij")
+    st = np.sqrt(1 - MU ** 2)
+    v = np.stack([st * np.cos(PH), st * np.sin(PH), MU], axis=-1)
+    f = gl.brdf(np.array([0.0, 0.0, 1.0]), s, v, mss, index)
+    return float(np.sum(f * MU * w_mu[:, None]) * (2 * np.pi / n_phi))
+
+
+def _facet_average(theta_s_deg, mss, n=N_WATER, half_width_sigmas=8.0, m=1001):
+    """Return the same albedo counted in slope space, without the BRDF: the mean over Cox-Munk's facets
+    (Gaussian slopes, variance mss/2 per axis) of their Fresnel share at their own incidence angle times their
+    area seen from the Sun per unit area of the mean surface, ((s . n_f) / cos beta) / cos theta_s, over the
+    facets that face the Sun and mirror it above the horizon (midpoint rule on a slope grid)."""
+    th = np.radians(theta_s_deg)
+    s = np.array([np.sin(th), 0.0, np.cos(th)])
+    half = half_width_sigmas * np.sqrt(mss / 2)
+    z = (np.arange(m) + 0.5) / m * 2 * half - half
+    zx, zy = np.meshgrid(z, z, indexing="ij")
+    p = np.exp(-(zx ** 2 + zy ** 2) / mss) / (np.pi * mss)
+    nf = np.stack([-zx, -zy, np.ones_like(zx)], axis=-1)
+    nf /= np.linalg.norm(nf, axis=-1, keepdims=True)
+    c = nf @ s
+    r_z = 2 * c * nf[..., 2] - s[2]                  # the mirrored ray's vertical component
+    ok = (c > 0) & (r_z > 0)
+    cc = np.clip(c, 1e-12, 1.0)
+    rho = _fresnel_snell(np.arccos(cc), n)
+    area = (c / nf[..., 2]) / np.cos(th)
+    return float(np.sum(np.where(ok, rho * area * p, 0.0)) * (2 * half / m) ** 2)
+
+
+# ---- Fresnel ------------------------------------------------------------------------------------
+def test_fresnel_normal_and_grazing():
+    # ((n - 1)/(n + 1))^2 = (0.33/2.33)^2 = 0.020060 for n = 1.33 (normal incidence); 1 at grazing
+    assert gl.fresnel_reflectance(1.0) == pytest.approx((0.33 / 2.33) ** 2, rel=1e-12)
+    assert gl.fresnel_reflectance(1.0) == pytest.approx(0.02006, abs=5e-6)
+    assert gl.fresnel_reflectance(0.0) == pytest.approx(1.0, abs=1e-12)
+    # a wrong index fails the normal-incidence value: n = 1.5 gives 0.04
+    assert gl.fresnel_reflectance(1.0, index=1.5) != pytest.approx(0.02006, abs=5e-6)
+
+
+def test_fresnel_closed_form_equals_snell():
+    th = np.radians(np.linspace(1.0, 89.0, 89))
+    assert np.allclose(gl.fresnel_reflectance(np.cos(th)), _fresnel_snell(th), rtol=1e-10, atol=0)
+    assert not np.allclose(gl.fresnel_reflectance(np.cos(th), index=1.5), _fresnel_snell(th), rtol=1e-3)
+
+
+# ---- slope distribution -------------------------------------------------------------------------
+def test_mean_square_slope_cox_munk():
+    # Cox & Munk 1954 (J. Opt. Soc. Am. 44, 838), clean surface: sigma^2 = 0.003 + 5.12e-3 W
+    assert gl.mean_square_slope(0.0) == pytest.approx(0.003)
+    assert gl.mean_square_slope(7.0) == pytest.approx(0.003 + 0.00512 * 7)
+    assert gl.mean_square_slope(10.0) == pytest.approx(0.0542)
+
+
+@pytest.mark.parametrize("wind", [0.0, 2.0, 7.0, 14.0])
+def test_slope_pdf_normalised(wind):
+    mss = gl.mean_square_slope(wind)
+    half, m = 10 * np.sqrt(mss), 2001
+    z = (np.arange(m) + 0.5) / m * 2 * half - half
+    zx, zy = np.meshgrid(z, z, indexing="ij")
+    total = gl.slope_pdf(zx, zy, mss).sum() * (2 * half / m) ** 2
+    assert total == pytest.approx(1.0, abs=1e-6)
+    # and its variance per axis is sigma^2 / 2 (Cox & Munk's sigma^2 = sigma_u^2 + sigma_c^2)
+    var_x = (gl.slope_pdf(zx, zy, mss) * zx ** 2).sum() * (2 * half / m) ** 2
+    assert var_x == pytest.approx(mss / 2, rel=1e-6)
+
+
+# ---- the BRDF ---------------------------------------------------------------------------------
+def _dirs(rng, n):
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    v[:, 2] = np.abs(v[:, 2])
+    return v
+
+
+def test_reciprocity():
+    rng = np.random.default_rng(17)
+    a, b = _dirs(rng, 5000), _dirs(rng, 5000)
+    nz = np.array([0.0, 0.0, 1.0])
+    mss = gl.mean_square_slope(7.0)
+    fab, fba = gl.brdf(nz, a, b, mss), gl.brdf(nz, b, a, mss)
+    assert np.all(fab >= 0) and np.count_nonzero(fab > 1e-3) > 100
+    assert np.allclose(fab, fba, rtol=1e-12, atol=0)
+
+
+def test_peak_at_the_specular_direction():
+    mss = gl.mean_square_slope(7.0)
+    for zen in (20.0, 40.0, 60.0):
+        th = np.radians(zen)
+        s = np.array([np.sin(th), 0.0, np.cos(th)])
+        thv = np.radians(np.linspace(0.05, 89.95, 1799))
+        phv = np.radians(np.linspace(-180, 180, 721))
+        T, P = np.meshgrid(thv, phv, indexing="ij")
+        v = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1)
+        # the facets' share f cos(theta_v) / rho(local angle) is largest where the flat sea mirrors the Sun:
+        # theta_v = theta_s, azimuth opposite (facet tilt beta = 0, where p / cos^4(beta) peaks for sigma^2 < 1/2)
+        cos_h = np.sqrt(0.5 * (1 + v @ s))
+        g = gl.brdf([0, 0, 1.0], s, v, mss) * np.cos(T) / _fresnel_snell(np.arccos(cos_h))
+        i, j = np.unravel_index(np.argmax(g), g.shape)
+        assert np.degrees(thv[i]) == pytest.approx(zen, abs=0.05)
+        assert abs(abs(np.degrees(phv[j])) - 180.0) <= 0.5
+        # f cos(theta_v) itself peaks in the same plane, farther from the zenith (Fresnel grows with the local angle)
+        i, j = np.unravel_index(np.argmax(g * _fresnel_snell(np.arccos(cos_h))), g.shape)
+        assert np.degrees(thv[i]) >= zen and abs(abs(np.degrees(phv[j])) - 180.0) <= 0.5
+        # and its value there is rho(theta_s) / (4 pi sigma^2 cos theta_s) (beta = 0: p(0) = 1 / (pi sigma^2))
+        spec = np.array([-np.sin(th), 0.0, np.cos(th)])
+        expect = _fresnel_snell(th) / (4 * np.pi * mss * np.cos(th) ** 2)
+        assert gl.brdf([0, 0, 1.0], s, spec, mss) == pytest.approx(expect, rel=1e-10)
+
+
+def test_zero_below_the_surface():
+    mss = gl.mean_square_slope(7.0)
+    up, down = np.array([0.3, 0.0, 0.954]), np.array([0.3, 0.0, -0.954])
+    assert gl.brdf([0, 0, 1.0], up, down, mss) == 0.0
+    assert gl.brdf([0, 0, 1.0], down, up, mss) == 0.0
+    assert gl.reflected_cos2(-0.1, 0.5, 0.2, mss) == 0.0
+
+
+@pytest.mark.parametrize("zen", [20.0, 40.0, 60.0])
+def test_hemispherical_reflectance_is_fresnel_on_a_calm_sea(zen):
+    # The issue's criterion (2 %): integral f cos(theta_v) d omega_v against Fresnel's rho(theta_s) for n = 1.33
+    # (closed form via Snell). It holds for a calm sea (W = 0, sigma^2 = 0.003: +0.1/+0.5/+0.9 %); with wind,
+    # tilted facets raise the albedo (see the next test and the module docstring).
+    a = _hemispherical(zen, gl.mean_square_slope(0.0))
+    rho = float(_fresnel_snell(np.radians(zen)))
+    assert a == pytest.approx(rho, rel=0.02)
+
+
+def test_hemispherical_reflectance_fails_with_wrong_inputs():
+    rho40 = float(_fresnel_snell(np.radians(40.0)))
+    # sigma^2 with 0.0512 per m/s (ten times Cox-Munk's) at 2 m/s: +9 %
+    assert _hemispherical(40.0, 0.003 + 0.0512 * 2) != pytest.approx(rho40, rel=0.02)
+    # water index 1.5 instead of 1.33: the BRDF's Fresnel share is that of glass
+    assert _hemispherical(40.0, gl.mean_square_slope(0.0), index=1.5) != pytest.approx(rho40, rel=0.02)
+
+
+def test_hemispherical_reflectance_at_7_m_s_twenty_degrees():
+    # the criterion at the wind the CLI examples use: holds at 20 deg (+1.4 %), not at 40 (+7.0 %) or 60 (+4.4 %),
+    # where the facet average of the next test is the right value
+    assert _hemispherical(20.0, gl.mean_square_slope(7.0)) == pytest.approx(float(_fresnel_snell(np.radians(20))),
+                                                                             rel=0.02)
+
+
+@pytest.mark.parametrize("wind", [2.0, 7.0, 14.0])
+@pytest.mark.parametrize("zen", [20.0, 40.0, 60.0])
+def test_hemispherical_reflectance_is_the_facet_average(zen, wind):
+    # In direction space (the BRDF) and in slope space (facets, no BRDF): the same albedo, to the quadratures'
+    # accuracy (0.3 %: the slope grid's edge at the horizon cut-off is a step, ~1e-4 of the sum)
+    mss = gl.mean_square_slope(wind)
+    assert _hemispherical(zen, mss) == pytest.approx(_facet_average(zen, mss), rel=3e-3)
+
+
+def test_facet_average_fails_with_the_wrong_slope_law():
+    mss = gl.mean_square_slope(7.0)
+    assert _hemispherical(40.0, mss) != pytest.approx(_facet_average(40.0, 0.003 + 0.0512 * 7), rel=3e-3)
+
+
+# ---- input ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), "x"])
+def test_bad_wind_is_a_user_error(bad):
+    with pytest.raises(InvalidInputError, match="--glint"):
+        gl.check_wind(bad)
+    with pytest.raises(InvalidInputError):
+        gl.SunGlint(bad)
