@@ -109,17 +109,35 @@ def brdf(normal, to_sun, to_observer, mss, index=WATER_INDEX):
         return np.where((mu_i > 0) & (mu_o > 0), q / (mu_i * mu_o), 0.0)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SunGlint:
-    """The sea's sun glint of a run: wind speed ``wind_m_s`` (m/s at 12.5 m) and water index ``index``."""
+    """The sea's sun glint of a run: wind speed ``wind_m_s`` (m/s at 12.5 m), water index ``index`` and where the sea
+    is: ``sea`` None for GSHHG's (:func:`simcore.environment.water.ocean_fraction` of the map), or the sea fraction
+    of each cell (n_lat, n_lon) in [0, 1] on the map's grid and row order (e.g. 1 everywhere: an ocean planet)."""
 
     wind_m_s: float
     index: float = WATER_INDEX
+    sea: object = None
 
     def __post_init__(self):
         object.__setattr__(self, "wind_m_s", check_wind(self.wind_m_s))
         if not (math.isfinite(self.index) and self.index > 1.0):
             raise ValueError(f"the water's refractive index must be a finite number > 1, got {self.index}")
+        if self.sea is not None:
+            sea = np.array(self.sea, dtype=float)
+            if sea.ndim != 2 or not np.all((sea >= 0) & (sea <= 1)):
+                raise ValueError("sea must be a (n_lat, n_lon) array of fractions in [0, 1] on the map's grid")
+            sea.setflags(write=False)
+            object.__setattr__(self, "sea", sea)
+
+    def sea_fraction(self, refl):
+        """Return the sea fraction (n_lat, n_lon) of map ``refl``'s cells, in its row order."""
+        if self.sea is None:
+            from simcore.environment.water import ocean_fraction
+            return ocean_fraction(refl)
+        if self.sea.shape != refl.shape:
+            raise ValueError(f"the glint's sea fraction has shape {self.sea.shape}, the map {refl.shape}")
+        return self.sea
 
     @property
     def mss(self):
