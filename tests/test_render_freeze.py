@@ -180,3 +180,38 @@ def test_a_dropped_renderer_is_freed_at_once():
     finally:
         if enabled:
             gc.enable()
+
+
+def _render_glint(cfg, frozen, glint, sun, earth, rot, **kw):
+    dr = import_drjit()
+    flag = dr.flag(dr.JitFlag.KernelFreezing)
+    dr.set_flag(dr.JitFlag.KernelFreezing, frozen)
+    try:
+        rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), glint=glint)
+        res = rend.render(sun, earth, rot, **kw)
+    finally:
+        dr.set_flag(dr.JitFlag.KernelFreezing, flag)
+    return res, rend
+
+
+def test_frozen_kernels_with_glint_and_another_wind():
+    # the glint's sea table reaches the kernels through _Lanes and its wind and index are in _kernel_state: a
+    # renderer with glint replays what tracing gives, and one whose wind changes after recording records anew
+    from simcore.radiometry.glint import SunGlint
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    sun, earth, rot = _epochs(24, seed=13)
+    kw = dict(seed=5, batch_epochs=8, direct_samples=256, albedo_samples=64)
+    got, rend = _render_glint(cfg, True, SunGlint(7.0), sun, earth, rot, **dict(kw))
+    assert rend._frozen["_albedo_kernel"].n_recordings == 1
+    # (another wind at once: building other renderers in between can make a recording start anew by itself)
+    rend._glint = SunGlint(2.0)
+    got2 = rend.render(sun, earth, rot, **dict(kw))
+    assert rend._frozen["_albedo_kernel"].n_recordings == 2
+    ref, _ = _render_glint(cfg, False, SunGlint(7.0), sun, earth, rot, **dict(kw))
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    ref2, _ = _render_glint(cfg, False, SunGlint(2.0), sun, earth, rot, **dict(kw))
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got2, name), getattr(ref2, name), err_msg=name)
+    plain, _ = _render_glint(cfg, True, None, sun, earth, rot, **dict(kw))
+    assert np.any(got.albedo_w_m2 != plain.albedo_w_m2)          # the glint is there
