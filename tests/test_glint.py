@@ -1,4 +1,11 @@
-"""Ocean sun glint (simcore.radiometry.glint): the Cox-Munk BRDF against closed forms and independent quadratures."""
+"""Ocean sun glint (issue 17 item 3): the Cox-Munk BRDF against closed forms and independent quadratures, the
+analytic model against a quadrature of its own, the renderer against the analytic model, and runs with --glint."""
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -393,3 +400,62 @@ def test_rendered_glint_needs_the_same_sea(glint_renders):
     geo, val, se = glint_renders
     ref = np.stack([_analytic_glint_on(7.0, N_WATER, True, i, geo) for i in (6, 7)])
     assert not _agrees(val[6:] - ref, se[6:])[0]
+
+
+# ---- runs and the command line -----------------------------------------------------------------------------
+SUNSIM = [sys.executable, "-m", "simcore.cli"]
+SUNLIT = ["--start", "2016-07-02T00:45:00Z"]   # the default day's orbit, sunlit over the North Pacific (Sun 29-13 deg
+#                                                from the zenith under the satellite): glint up to ~20 W/m^2
+
+
+def _sunsim(args, cwd):
+    return subprocess.run(SUNSIM + list(args), capture_output=True, text=True, timeout=600, cwd=cwd)
+
+
+def _listing(folder):
+    return sorted(os.path.relpath(os.path.join(d, f), folder) for d, ds, fs in os.walk(folder) for f in fs + ds)
+
+
+def test_runs_without_glint_keep_their_settings_digest():
+    from simcore.pipeline.run import RunOptions
+    assert "glint" not in RunOptions().spec()
+    assert RunOptions(glint=7.0).spec()["glint"] == 7.0
+
+
+@pytest.mark.parametrize("maps", [[], ["--map", "ceres2018-all", "--clouds", "1"]])
+def test_a_glint_run_passes_its_analytic_check_which_sees_the_glint(tmp_path, maps):
+    r = _sunsim(["run", "--glint", "7", *maps, *SUNLIT, "--duration", "300", "-o", "g.nc"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    v = _sunsim(["validate", "g.nc", "--json"], tmp_path)
+    assert v.returncode == 0, v.stdout + v.stderr
+    assert json.loads(v.stdout)["verdict"] == "PASS"
+    import xarray as xr
+    from simcore.pipeline.run import PreparedRun, options_of
+    ds = xr.load_dataset(tmp_path / "g.nc")
+    assert ds.attrs["glint_wind_m_s"] == 7.0 and ds.attrs["glint_water_index"] == 1.33
+    assert ds.attrs["glint_mean_square_slope"] == pytest.approx(0.003 + 0.00512 * 7)   # Cox & Munk 1954
+    # the check's reference holds the glint: without it the rendered albedo sits far above the reference
+    opts = options_of(ds, str(tmp_path / "g.nc"))
+    study = PreparedRun(opts)
+    bare = PreparedRun(dataclasses.replace(opts, glint=None))
+    sl = slice(0, len(study.epochs))
+    with_glint = study.analytic(sl, study.map, direct=False).albedo_w_m2
+    without = bare.analytic(sl, bare.map, direct=False).albedo_w_m2
+    assert (with_glint - without).max() > 5.0                                     # W/m^2
+    rendered, se = ds["irradiance"].values[..., 1], ds["irradiance_se"].values[..., 1]
+    ok = se > 0
+    pooled = (rendered - without)[ok].sum() / np.sqrt((se[ok] ** 2).sum())
+    assert pooled > 10                   # the check's bias test (|B| <= 3.9) would fail by far
+    if maps:
+        # under cloud weather the overcast cells' sea gives no glint
+        over = study.clouds.overcast(1)
+        assert np.all(study.glint.sea[over] == 0) and np.any(study.glint.sea[~over] == 1)
+
+
+@pytest.mark.parametrize("value", ["-1", "nan", "inf", "-0.5"])
+def test_bad_wind_is_one_line_exit_2_and_writes_nothing(tmp_path, value):
+    r = _sunsim(["run", *SUNLIT, "--duration", "4", "--glint", value], tmp_path)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and "--glint WIND_M_S must be a finite wind speed >= 0" in lines[0], r.stderr
+    assert "Traceback" not in r.stderr and _listing(tmp_path) == []

@@ -146,6 +146,8 @@ class SunGlint:
 
     def attrs(self):
         """Return the run file's attributes that say which glint it rendered."""
-        return {"glint_model": "Cox-Munk 1954 isotropic, no shadowing; on the map's water fraction (GSHHG)",
+        return {"glint_model": "Cox-Munk 1954 isotropic slopes, unpolarised Fresnel, no shadowing; added to the map's "
+                               "diffuse reflectivity on each cell's sea fraction (GSHHG; none under the overcast "
+                               "cells of cloud weather)",
                 "glint_wind_m_s": self.wind_m_s, "glint_water_index": self.index,
                 "glint_mean_square_slope": self.mss}
