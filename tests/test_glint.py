@@ -116,6 +116,11 @@ def test_reciprocity():
     fab, fba = gl.brdf(nz, a, b, mss), gl.brdf(nz, b, a, mss)
     assert np.all(fab >= 0) and np.count_nonzero(fab > 1e-3) > 100
     assert np.allclose(fab, fba, rtol=1e-12, atol=0)
+    # the test catches a common slip: Fresnel at the Sun's zenith instead of the facet's local angle (s . h)
+    def wrong(x, y):
+        cos_h = np.sqrt(0.5 * (1 + np.sum(x * y, axis=1)))
+        return gl.brdf(nz, x, y, mss) * gl.fresnel_reflectance(x[:, 2]) / gl.fresnel_reflectance(cos_h)
+    assert not np.allclose(wrong(a, b), wrong(b, a), rtol=1e-12, atol=0)
 
 
 def test_peak_at_the_specular_direction():
@@ -141,6 +146,8 @@ def test_peak_at_the_specular_direction():
         spec = np.array([-np.sin(th), 0.0, np.cos(th)])
         expect = _fresnel_snell(th) / (4 * np.pi * mss * np.cos(th) ** 2)
         assert gl.brdf([0, 0, 1.0], s, spec, mss) == pytest.approx(expect, rel=1e-10)
+        assert gl.brdf([0, 0, 1.0], s, spec, mss, index=1.5) != pytest.approx(expect, rel=1e-2)
+        assert gl.brdf([0, 0, 1.0], s, spec, 0.003 + 0.0512 * 7) != pytest.approx(expect, rel=1e-2)
 
 
 def test_zero_below_the_surface():
