@@ -55,3 +55,22 @@ def test_any_grid_order():
     ceres = ReflectivityMap.ceres2018("all")
     m = ReflectivityMap(np.ones((180, 360)), np.arange(89.5, -90, -1.0), np.arange(0.5, 360, 1.0))
     assert np.array_equal(ocean_fraction(m), np.roll(ocean_fraction(ceres), -180, axis=1)[::-1])
+
+
+def test_same_cells_as_matplotlibs_point_in_polygon():
+    # another implementation of point in polygon (matplotlib.path.Path.contains_points, a winding test) on the
+    # same equal-area points of a 5 x 5 deg grid: the same fraction in every cell
+    from matplotlib.path import Path
+    from simcore.environment.coastlines import SHORELINE_TYPES, coastlines_deg
+    m = ReflectivityMap.from_array(np.zeros((36, 72)))
+    k = (np.arange(8) + 0.5) / 8
+    s_lo, s_hi = np.sin(np.radians(m.lat_deg - 2.5)), np.sin(np.radians(m.lat_deg + 2.5))
+    lat = np.degrees(np.arcsin(s_lo[:, None] + k[None, :] * (s_hi - s_lo)[:, None]))       # (36, 8)
+    lon = m.lon_deg[:, None] - 2.5 + 5.0 * k[None, :]                                        # (72, 8)
+    LAT = np.broadcast_to(lat[:, None, :, None], (36, 72, 8, 8)).ravel()
+    LON = np.broadcast_to(lon[None, :, None, :], (36, 72, 8, 8)).ravel()
+    land = np.zeros(LAT.size, bool)
+    for poly in coastlines_deg(SHORELINE_TYPES):
+        land |= Path(poly).contains_points(np.column_stack([LON, LAT]))
+    expect = 1.0 - land.reshape(36, 72, 64).mean(axis=2)
+    np.testing.assert_array_equal(ocean_fraction(m), expect)

@@ -9,9 +9,10 @@ the Caspian Sea 0.07 %). At the crude resolution (~25 km) small islands are miss
 straight, which moves the global sea fraction by a few tenths of a percent (``tests/test_water.py``).
 
 A cell's fraction is the share of ``_SUB`` x ``_SUB`` points inside it, equal in area (uniform in longitude
-and in sin(latitude)), that fall on no land polygon (point in polygon in the longitude/latitude plane: the
-polygons that cross the date line come as two pieces, Antarctica's closed along the pole). Computed once per
-grid and cached in memory; nothing is written.
+and in sin(latitude)), that fall on no land polygon (point in polygon in the longitude/latitude plane by the
+even-odd rule along each row of points: the polygons that cross the date line come as two pieces,
+Antarctica's closed along the pole; the same cells as matplotlib's ``Path.contains_points``, ~70 times
+faster). Computed once per grid (~0.1 s) and cached in memory; nothing is written.
 """
 from functools import lru_cache
 
@@ -31,29 +32,29 @@ def ocean_fraction(refl):
 
 @lru_cache(maxsize=4)
 def _fraction(lat_deg, lon_deg, dlat_deg, dlon_deg):
-    from matplotlib.path import Path
-
     lat_c, lon_c = np.asarray(lat_deg), np.asarray(lon_deg)
     k = (np.arange(_SUB) + 0.5) / _SUB
     # equal-area points in each row: uniform in sin(latitude) between the row's edges
-    lo = np.radians(np.clip(lat_c - dlat_deg / 2, -90, 90))
-    hi = np.radians(np.clip(lat_c + dlat_deg / 2, -90, 90))
-    s_lo, s_hi = np.sin(lo)[:, None], np.sin(hi)[:, None]
-    lat_pts = np.degrees(np.arcsin(s_lo + k[None, :] * (s_hi - s_lo)))              # (n_lat, SUB)
-    lon_pts = lon_c[:, None] - dlon_deg / 2 + k[None, :] * dlon_deg                   # (n_lon, SUB)
-    lon_pts = (lon_pts + 180.0) % 360.0 - 180.0
+    s_lo = np.sin(np.radians(np.clip(lat_c - dlat_deg / 2, -90, 90)))[:, None]
+    s_hi = np.sin(np.radians(np.clip(lat_c + dlat_deg / 2, -90, 90)))[:, None]
+    lat_pts = np.degrees(np.arcsin(s_lo + k[None, :] * (s_hi - s_lo))).ravel()
+    lon_pts = ((lon_c[:, None] - dlon_deg / 2 + k[None, :] * dlon_deg + 180.0) % 360.0 - 180.0).ravel()
+    order = np.argsort(lon_pts, kind="stable")
+    lon_sorted = lon_pts[order]
+    # Every edge of every land polygon (closed); the polygons do not overlap, so a point is on land when a ray
+    # from it toward the west crosses an odd number of edges (even-odd rule, one scan line per row of points;
+    # an edge counts on [lower, upper) latitude so that a vertex on the scan line is crossed once)
+    polys = coastlines_deg(SHORELINE_TYPES)
+    a = np.concatenate(polys)
+    b = np.concatenate([np.roll(p, -1, axis=0) for p in polys])
+    x1, y1, x2, y2 = a[:, 0], a[:, 1], b[:, 0], b[:, 1]
+    y_lo, y_hi = np.minimum(y1, y2), np.maximum(y1, y2)
+    land = np.empty((lat_pts.size, lon_pts.size), bool)
+    for r, y in enumerate(lat_pts):
+        e = (y_lo <= y) & (y < y_hi)
+        xs = np.sort(x1[e] + (y - y1[e]) / (y2[e] - y1[e]) * (x2[e] - x1[e]))
+        land[r, order] = np.searchsorted(xs, lon_sorted, side="right") % 2 == 1
     n_lat, n_lon = len(lat_c), len(lon_c)
-    LAT = np.broadcast_to(lat_pts[:, None, :, None], (n_lat, n_lon, _SUB, _SUB)).reshape(-1)
-    LON = np.broadcast_to(lon_pts[None, :, None, :], (n_lat, n_lon, _SUB, _SUB)).reshape(-1)
-    land = np.zeros(LAT.size, bool)
-    for poly in coastlines_deg(SHORELINE_TYPES):
-        x0, y0 = poly.min(axis=0)
-        x1, y1 = poly.max(axis=0)
-        box = np.flatnonzero((LAT >= y0) & (LAT <= y1) & (LON >= x0) & (LON <= x1) & ~land)
-        if box.size == 0:
-            continue
-        inside = Path(poly, closed=False).contains_points(np.column_stack([LON[box], LAT[box]]))
-        land[box[inside]] = True
-    frac = 1.0 - land.reshape(n_lat, n_lon, _SUB * _SUB).mean(axis=2)
+    frac = 1.0 - land.reshape(n_lat, _SUB, n_lon, _SUB).mean(axis=(1, 3))
     frac.setflags(write=False)
     return frac
