@@ -2,17 +2,18 @@
 
 The sea is a surface of flat facets whose slopes ``(z_x, z_y)`` follow Cox & Munk's isotropic Gaussian
 (C. Cox and W. Munk, "Measurement of the roughness of the sea surface from photographs of the sun's
-glitter", J. Opt. Soc. Am. 44, 838-850, 1954; their clean-surface fit, eq. 4 and fig. 12)::
+glitter", J. Opt. Soc. Am. 44, 838-850, 1954; their fit for a clean sea surface)::
 
     p(z_x, z_y) = exp(-(z_x^2 + z_y^2) / sigma^2) / (pi sigma^2),   sigma^2 = 0.003 + 0.00512 W
 
 with W the wind speed (m/s) at 12.5 m above the sea; ``integral p dz_x dz_y = 1`` over the slope plane.
 Sunlight reaches the satellite only off the facets whose normal is the half vector ``h`` of the unit
 directions to the Sun ``s`` and to the observer ``v``; a facet reflects the unpolarised Fresnel share
-``rho(s . h)`` of water (index 1.33, the closed form of Cook & Torrance 1982, eq. for unpolarised light;
-``((n - 1)/(n + 1))^2 = 0.0201`` at normal incidence, 1 at grazing). The BRDF in its standard form (the 6S
-code's ``sunglint`` routine, Vermote et al. 1997; Nakajima & Tanaka 1983, J. Quant. Spectrosc. Radiat.
-Transfer 29, 521, eq. 10 without their shadowing factor; Zhang & Wang 2010, Opt. Express 18, eq. 2)::
+``rho(s . h)`` of water (index 1.33; the unpolarised closed form of Cook & Torrance 1982, ACM Trans. Graph. 1, 7;
+``((n - 1)/(n + 1))^2 = 0.0201`` at normal incidence, 1 at grazing). The BRDF in its standard form (as in the
+6S code's sun-glint routine, Vermote et al. 1997, there with Cox & Munk's anisotropic slopes; Nakajima &
+Tanaka 1983, J. Quant. Spectrosc. Radiat. Transfer 29, 521, with their shadowing factor set to 1; Zhang & Wang
+2010, Opt. Express 18)::
 
     f(s, v) = rho(s . h) p(tan beta) / (4 cos^4(beta) cos(theta_s) cos(theta_v))
 
