@@ -104,6 +104,10 @@ def _add_render_options(p):
                    "ceres2018-clear, uniform:ALBEDO (one mean albedo, as Basilisk's ALBEDO_AVG, e.g. uniform:0.3) "
                    "or a .npz file (default %(default)s)")
     _add_cloud_options(p)
+    p.add_argument("--glint", type=float, metavar="WIND_M_S",
+                   help="ocean sun glint: a Cox-Munk rough-sea BRDF (wind speed at 12.5 m, m/s, e.g. 7) on the sea "
+                        "part of each map cell (GSHHG coastlines), added to the map's diffuse reflectivity, in the "
+                        "render and in the analytic check (simcore/radiometry/glint.py)")
     p.add_argument("--point-sun", action="store_true", help="a point Sun (no penumbra) instead of the 0.53 deg disc")
     p.add_argument("--solar-flux", choices=["physical", "thesis"], default="physical",
                    help="physical: 1361 W/m^2 at 1 AU (IAU 2015 B3, Kopp & Lean 2011) x (1 AU / r_sun)^2; "
@@ -153,7 +157,7 @@ def run_options(args):
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
         reflected_samples=args.reflected_samples, dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
-        clouds=args.clouds, cloud_scale_km=args.cloud_scale_km,
+        clouds=args.clouds, cloud_scale_km=args.cloud_scale_km, glint=getattr(args, "glint", None),
         sun_disc=not args.point_sun, chunk_epochs=args.chunk, output=args.output,
         **(dict(e_sun_w_m2=E_SUN_W_M2, distance_scaling=False) if args.solar_flux == "thesis" else {}),
         fail_on_check=args.fail_on_check, overwrite=args.overwrite, allow_bright_map=args.allow_bright_map)

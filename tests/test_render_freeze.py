@@ -30,13 +30,14 @@ def _epochs(n, seed):
 
 
 def _render(cfg, frozen, sun, earth, rot, **kw):
-    """Return (RenderResult, Renderer) of ``cfg`` rendered with freezing on or off."""
+    """Return (RenderResult, Renderer) of ``cfg`` rendered with freezing on or off (``glint``, a Sun radius: the
+    Renderer's)."""
     dr = import_drjit()
     flag = dr.flag(dr.JitFlag.KernelFreezing)
     dr.set_flag(dr.JitFlag.KernelFreezing, frozen)
     try:
         rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg),
-                        sun_angular_radius_rad=kw.pop("sun_angular_radius_rad", 0.0))
+                        sun_angular_radius_rad=kw.pop("sun_angular_radius_rad", 0.0), glint=kw.pop("glint", None))
         res = rend.render(sun, earth, rot, **kw)
     finally:
         dr.set_flag(dr.JitFlag.KernelFreezing, flag)
@@ -224,3 +225,26 @@ def test_a_second_thread_tracing_kernels_beside_a_recording_changes_nothing():
         np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
     for b in beside:
         np.testing.assert_array_equal(b, alone)
+
+
+def test_frozen_kernels_with_glint_and_another_wind():
+    # the glint's sea table reaches the kernels through _Lanes and its wind and index are in _kernel_state: a
+    # renderer with glint replays what tracing gives, and one whose wind changes after recording records anew
+    from simcore.radiometry.glint import SunGlint
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    sun, earth, rot = _epochs(24, seed=13)
+    kw = dict(seed=5, batch_epochs=8, direct_samples=256, albedo_samples=64)
+    got, rend = _render(cfg, True, sun, earth, rot, glint=SunGlint(7.0), **dict(kw))
+    assert rend._frozen["_albedo_kernel"].n_recordings == 1
+    # (another wind at once: building other renderers in between can make a recording start anew by itself)
+    rend._glint = SunGlint(2.0)
+    got2 = rend.render(sun, earth, rot, **dict(kw))
+    assert rend._frozen["_albedo_kernel"].n_recordings == 2
+    ref, _ = _render(cfg, False, sun, earth, rot, glint=SunGlint(7.0), **dict(kw))
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    ref2, _ = _render(cfg, False, sun, earth, rot, glint=SunGlint(2.0), **dict(kw))
+    for name in _ARRAYS:
+        np.testing.assert_array_equal(getattr(got2, name), getattr(ref2, name), err_msg=name)
+    plain, _ = _render(cfg, True, sun, earth, rot, glint=None, **dict(kw))
+    assert np.any(got.albedo_w_m2 != plain.albedo_w_m2)          # the glint is there

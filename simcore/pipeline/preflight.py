@@ -78,6 +78,9 @@ def check_numbers(opts):
     if int(opts.chunk_epochs) != opts.chunk_epochs or opts.chunk_epochs < 1:
         raise InvalidInputError(f"--chunk must be a positive number of epochs, got {opts.chunk_epochs}")
     check_clouds(opts)
+    if getattr(opts, "glint", None) is not None:
+        from simcore.radiometry.glint import check_wind
+        check_wind(opts.glint)
 
 
 def check_reflected_samples(n):

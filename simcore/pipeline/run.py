@@ -29,6 +29,7 @@ from scenes.meshes import build_parts, build_satellite_mesh
 from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
+from simcore.radiometry.glint import SunGlint
 from simcore.shapes.aperture import CircularWell
 from simcore.shapes.occlusion import box_hit
 from simcore.shapes.window import WindowedWell
@@ -80,6 +81,7 @@ class RunOptions:
     reflectivity: str = "toms2005"
     clouds: int = None                 # cloud-weather seed (simcore.environment.clouds); None: the map as it is
     cloud_scale_km: float = None       # the clouds' correlation length (None: clouds.DEFAULT_SCALE_KM)
+    glint: float = None                # sea sun glint: wind speed m/s at 12.5 m (simcore.radiometry.glint); None: none
     sun_disc: bool = True              # finite solar disc: penumbra
     e_sun_w_m2: float = TSI_W_M2        # solar irradiance at 1 AU (the thesis: E_SUN_W_M2 = 1366.1)
     distance_scaling: bool = True      # x (1 AU / r_sun)^2 (the thesis: a constant, False)
@@ -100,6 +102,8 @@ class RunOptions:
             d.pop("cloud_scale_km")
         elif d["cloud_scale_km"] is None:   # the default length named or not: one run, one digest
             d["cloud_scale_km"] = CLOUD_SCALE_KM
+        if d["glint"] is None:          # runs without glint keep the settings digest they always had
+            d.pop("glint")
         if d["reflected_samples"] == REFLECTED_SAMPLES:     # runs at the default keep the digest they always had
             d.pop("reflected_samples")
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
@@ -167,7 +171,32 @@ class PreparedRun:
             self.clouds = CloudWeather.for_map(opts.reflectivity, opts.cloud_scale_km)
             self.map = self.clouds.realise(opts.clouds)
         self.map_refined = _refined(self.map, CHECK_REFINE)
+        self.glint = self._sea_glint()
         self._renderer = None
+
+    def _sea_glint(self):
+        """Return the run's :class:`SunGlint` on the map's cells (its sea fraction in the map's row order), or None.
+
+        The sea is GSHHG's (:mod:`simcore.environment.water`); under cloud weather the overcast cells' sea is
+        hidden (a thick cloud deck reflects diffusely, and its albedo is the map's there), so glint comes from
+        the clear sea only."""
+        wind = getattr(self.opts, "glint", None)
+        if wind is None:
+            return None
+        from simcore.environment.water import ocean_fraction
+        sea = ocean_fraction(self.map)
+        if self.clouds is not None:
+            sea = np.where(self.clouds.overcast(self.opts.clouds), 0.0, sea)
+        return SunGlint(wind, sea=sea)
+
+    def glint_on(self, reflectivity_map):
+        """Return the run's glint for ``reflectivity_map`` (the run's map or :attr:`map_refined`: each sub-cell keeps
+        its cell's sea fraction, as the renderer sees it), or None."""
+        if self.glint is None:
+            return None
+        f = reflectivity_map.shape[0] // self.map.shape[0]
+        sea = self.glint.sea if f == 1 else np.repeat(np.repeat(self.glint.sea, f, axis=0), f, axis=1)
+        return SunGlint(self.glint.wind_m_s, self.glint.index, sea=sea)
 
     @property
     def sun_angular_radius_rad(self):
@@ -190,8 +219,15 @@ class PreparedRun:
                 DiodeSurfaces.from_config(self.config), build_satellite_mesh(self.config, self._parts),
                 reflectivity=self.map.values_south_first, lon_west_deg=float(self.map.lon_edges_deg[0]),
                 e_sun_w_m2=self.opts.e_sun_w_m2, sun_angular_radius_rad=self.sun_angular_radius_rad,
-                variant=self.opts.variant)
+                variant=self.opts.variant, **self._renderer_glint())
         return self._renderer
+
+    def _renderer_glint(self):
+        """Return the renderer's glint keyword ({} without glint: the call as it always was); its sea south first."""
+        if self.glint is None:
+            return {}
+        sea = self.glint.sea if self.map.south_first else self.glint.sea[::-1]
+        return {"glint": SunGlint(self.glint.wind_m_s, self.glint.index, sea=sea)}
 
     def earth_sun_dir_body(self, sl):
         """Return (n, 3) the unit Earth-centre -> Sun vector in body axes (what lights the Earth, as in the
@@ -369,7 +405,8 @@ class PreparedRun:
                                body=BodyBox.from_config(self.config),
                                sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
                                albedo=albedo, backend="auto" if albedo else "numpy",
-                               visibility=self.visibility if mesh else None, box_albedo=box_albedo)
+                               visibility=self.visibility if mesh else None, box_albedo=box_albedo,
+                               glint=self.glint_on(reflectivity_map))
         if any(w is not None for w in self.config.windows):
             self._windowed_analytic(out, sl, reflectivity_map, direct, mesh, albedo, box_albedo)
         return out
@@ -400,7 +437,8 @@ class PreparedRun:
             v = self.visibility
             vis = DirectionVisibility(v.mask[idx], v.fine[idx], v.half[idx])
         alb = diode_irradiance(*args, direct=False, visibility=vis, **common, box_albedo=box_albedo,
-                               body=BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]))
+                               body=BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]),
+                               glint=self.glint_on(reflectivity_map))
         res.albedo_w_m2[:, idx] = alb.albedo_w_m2
         for name in ("albedo_mesh_w_m2", "albedo_visibility_error_w_m2", "albedo_box_w_m2"):
             if getattr(res, name) is not None:
@@ -665,6 +703,8 @@ def build_dataset(study, data, variant):
     })
     if study.clouds is not None:
         ds.attrs.update(study.clouds.attrs(o.clouds))
+    if study.glint is not None:
+        ds.attrs.update(study.glint.attrs())
     flags, report = check_run(ds)
     ds["outlier"] = (("time", "diode", "component"), np.stack([flags["direct"], flags["albedo"],
                                                                      np.zeros_like(flags["direct"])],

@@ -37,6 +37,7 @@ from scenes.config import body_side_normal
 
 from simcore import _llvm
 from simcore.environment import eclipse as _eclipse
+from simcore.radiometry import glint as _glint
 from simcore.radiometry import response as _resp
 from simcore.radiometry.albedo import check_geometry, sun_irradiance_w_m2
 from simcore.constants import E_SUN_W_M2, R_SUN_M
@@ -258,13 +259,25 @@ def cell_runs(r_sat_m, sun_unit, refl):
     return (np.stack([rows, rows], axis=-1), np.stack([f1, f2], axis=-1), np.stack([c1, c2], axis=-1))
 
 
+def _glint_terms(glint, refl):
+    """Return (sigma^2, water index, pi x sea area of each cell (n_lat, n_lon) m^2) of ``glint`` (a
+    :class:`~simcore.radiometry.glint.SunGlint`) on map ``refl``: the albedo sums' glint terms.
+
+    The map's reflectivity is read as the diffuse (Lambertian) part of each cell and the glint is added on its
+    sea fraction: a cell's weight ``rho A mu_i mu_o / d^2`` (times E_sun / pi) gains
+    ``pi s A f(s, v) mu_i mu_o / d^2`` (times the same E_sun / pi), s the sea fraction; f at the cell's centre."""
+    sea = glint.sea_fraction(refl)
+    return glint.mss, glint.index, np.pi * sea * refl.row_area_m2[:, None]
+
+
 # ---- the albedo sums ---------------------------------------------------------------------
 def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None, visibility=None,
-                  box_sum=True):  # (box_sum: the box-only sum costs one bincount here; always returned)
+                  box_sum=True, glint=None):  # (box_sum: the box-only sum costs one bincount here; always returned)
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy; with ``visibility`` (a
     :class:`DirectionVisibility`) also the same sum with its half-fine share, the sum of the well's
     response over its marked cells alone and the sum with the body box alone deciding everywhere (else
-    None, None, None)."""
+    None, None, None). ``glint``: None, or (sigma^2, water index, pi x sea area of each cell (n_lat, n_lon) m^2)
+    (:func:`_glint_terms`): each cell's weight gains its sea's glint."""
     n_ep, K = r_sat.shape[0], frames.shape[0]
     out = np.zeros((n_ep, K))
     alt = None if visibility is None else np.zeros((n_ep, K))
@@ -285,6 +298,10 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
     cos_out = np.einsum("ij,ij->i", v, n) * inv_d
     cos_in = np.einsum("ij,ij->i", sun_unit[ep], n)
     w = refl.weights_m2[row, col] * np.maximum(cos_in, 0.0) * np.maximum(cos_out, 0.0) * inv_d ** 2
+    if glint is not None:
+        mss, index, sea = glint
+        cos_io = np.einsum("ij,ij->i", sun_unit[ep], v) * inv_d
+        w = w + sea[row, col] * _glint.reflected_cos2(cos_in, cos_out, cos_io, mss, index) * inv_d ** 2
     e_body = np.einsum("nij,nj->ni", R_body_from_ecef[ep], -v * inv_d[:, None])
     comp = None if visibility is None else visibility.compact
     for k in range(K):
@@ -317,10 +334,11 @@ class _DrJitOps:
 
 
 def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None,
-                  visibility=None, box_sum=True):
+                  visibility=None, box_sum=True, glint=None):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor from one Dr.Jit LLVM kernel, and the
     three sums of :func:`_albedo_numpy` for ``visibility`` (else None, None, None; the box-only one None
-    unless ``box_sum``: one accumulator less in the kernel)."""
+    unless ``box_sum``: one accumulator less in the kernel); ``glint`` as in :func:`_albedo_numpy` (None: the
+    kernel is traced as it was without glint)."""
     dr = _llvm.import_drjit()
     from drjit.llvm import Float, Float64, UInt32
 
@@ -358,6 +376,8 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     lon = np.radians(refl.lon_deg)
     cos_lon, sin_lon = table(np.cos(lon)), table(np.sin(lon))
     weights = table(refl.weights_m2)
+    if glint is not None:
+        g_mss, g_index, g_sea = float(glint[0]), float(glint[1]), table(glint[2])
     radius = float(refl.radius_m)
     n_lon = refl.n_lon
     fr = frames.tolist()
@@ -447,6 +467,10 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         cos_out = (vx * nx + vy * ny + vz * nz) * inv_d
         cos_in = ux * nx + uy * ny + uz * nz
         wt = w * dr.maximum(cos_in, 0.0) * dr.maximum(cos_out, 0.0) * inv_d * inv_d
+        if glint is not None:
+            cos_io = (ux * vx + uy * vy + uz * vz) * inv_d
+            wt = wt + dr.gather(F, g_sea, base + j) * _glint.reflected_cos2(cos_in, cos_out, cos_io, g_mss, g_index,
+                                                                          ops) * inv_d * inv_d
         ex, ey, ez = -vx * inv_d, -vy * inv_d, -vz * inv_d
         bx = M[0] * ex + M[1] * ey + M[2] * ez
         by = M[3] * ex + M[4] * ey + M[5] * ez
@@ -811,7 +835,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
 def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_body, responses, *,
                      map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
                      albedo=True, backend="auto", precision="single", batch_epochs=4096, body=None,
-                     sun_angular_radius_rad=0.0, direct=True, visibility=None, box_albedo=False):
+                     sun_angular_radius_rad=0.0, direct=True, visibility=None, box_albedo=False, glint=None):
     """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`AnalyticIrradiance`.
 
     ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
@@ -836,6 +860,8 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     ``albedo_visibility_error_w_m2`` the difference its half-fine share makes (the quadrature's error),
     and, with ``box_albedo``, ``albedo_box_w_m2`` the albedo without it (the body box deciding everywhere),
     from the same pass.
+    ``glint``: a :class:`simcore.radiometry.glint.SunGlint`: the sea's Cox-Munk glint on each cell's sea
+    fraction, added to the map's (diffuse) reflectivity (:func:`_glint_terms`); None: none.
     """
     r_sat = _rows("r_sat_ecef_m", r_sat_ecef_m)
     r_sun = _rows("r_sun_ecef_m", r_sun_ecef_m)
@@ -893,6 +919,7 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     alb_box = None if visibility is None or not box_albedo else np.zeros_like(alb)
     if albedo:
         sun_unit = r_sun / np.linalg.norm(r_sun, axis=1)[:, None]
+        terms = None if glint is None else _glint_terms(glint, refl)
         batch = max(1, int(batch_epochs))
         if backend == "numpy":
             batch = min(batch, 256)      # numpy holds every (epoch, cell) pair of a batch in memory
@@ -901,7 +928,8 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
             fn = _albedo_drjit if backend == "drjit" else _albedo_numpy
             extra = (precision,) if backend == "drjit" else ()
             alb[sl], alt, band, box_only = fn(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl,
-                                              *extra, body, visibility, box_albedo)
+                                              *extra, body, visibility, box_albedo,
+                                              **({} if glint is None else {"glint": terms}))
             if visibility is not None:
                 alb_alt[sl], alb_band[sl] = alt, band
             if alb_box is not None:

@@ -106,6 +106,7 @@ from simcore import _llvm
 from simcore._llvm import host_array, host_buffer, host_wrap
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
 from simcore.environment.maps import named_map
+from simcore.radiometry import glint as _glint
 from simcore.shapes.aperture import disc_rectangle_overlap, lit_rectangle_of
 
 SUN_ANGULAR_RADIUS_RAD = float(np.arcsin(R_SUN_M / AU_M))  # 0.2666 deg: the 0.53 deg disc at 1 AU
@@ -411,7 +412,7 @@ class _DrOps:
 
     def __init__(self, dr):
         self.maximum, self.minimum, self.where = dr.maximum, dr.minimum, dr.select
-        self.sqrt, self.asin = dr.sqrt, dr.asin
+        self.sqrt, self.asin, self.exp = dr.sqrt, dr.asin, dr.exp
 
 
 def rays_blocked(scene, origins, directions, mi):
@@ -437,7 +438,10 @@ class Renderer:
     see :func:`choose_variant`; ``threads``: Dr.Jit CPU threads (default: all);
     ``control_variate``: use the diodes' WellAperture for the aperture split
     (module docstring) when ``diodes.apertures`` is given; ``max_depth``: the most
-    spacecraft vertices of a ``reflected`` path (module docstring). The mesh's materials:
+    spacecraft vertices of a ``reflected`` path (module docstring); ``glint``: a
+    :class:`simcore.radiometry.glint.SunGlint`, the sea's Cox-Munk glint added to the map's Lambertian
+    reflectance on each cell's sea fraction (``glint.sea`` in the map's layout, or GSHHG's), in every kernel
+    that looks the Earth up (None: no glint, and the kernels traced as without it). The mesh's materials:
     ``metadata['parts']`` (face ranges) with ``metadata['materials']`` (per part), or one
     ``metadata['material']`` for all of it (:mod:`scenes.materials`; default 'black').
 
@@ -448,7 +452,7 @@ class Renderer:
 
     def __init__(self, diodes, occluder_mesh=None, *, reflectivity=None, lon_west_deg=-180.0,
                  earth_radius_m=R_EARTH_MEAN_M, e_sun_w_m2=E_SUN_W_M2, sun_angular_radius_rad=0.0,
-                 variant=None, threads=None, control_variate=True, max_depth=8):
+                 variant=None, threads=None, control_variate=True, max_depth=8, glint=None):
         if not isinstance(diodes, DiodeSurfaces):
             raise TypeError("diodes must be a simcore.render.irradiance.DiodeSurfaces (positions_m, frames, sizes_m)")
         self.diodes = diodes
@@ -473,6 +477,9 @@ class Renderer:
                              f"use 0 (point Sun) or SUN_ANGULAR_RADIUS_RAD ({SUN_ANGULAR_RADIUS_RAD:.5f})")
         self.sun_angular_radius_rad = a
         self._refl_dr = host_array(mi.Float, refl)
+        self._glint, self._sea_dr = glint, None
+        if glint is not None:
+            self._sea_dr = host_array(mi.Float, self._sea_fraction(glint))
         self._scene = self._build_scene(occluder_mesh)
         if int(max_depth) < 1:
             raise ValueError(f"max_depth must be >= 1 spacecraft vertex, got {max_depth}")
@@ -509,6 +516,21 @@ class Renderer:
         self._vis = self._visibility_table()
         self._frozen = {}            # kernel name -> its drjit.freeze wrapper (_run)
         self._hit = None if self._pt is None else self._hit_table()
+
+    def _sea_fraction(self, glint):
+        """Return the sea fraction (n_lat, n_lon) of the reflectivity map's cells (its layout: row 0 the southern
+        band, column 0 from ``lon_west``): the glint's own (``glint.sea``) or GSHHG's."""
+        if glint.sea is not None:
+            if glint.sea.shape != self.reflectivity.shape:
+                raise ValueError(f"the glint's sea fraction has shape {glint.sea.shape}, the map "
+                                 f"{self.reflectivity.shape}")
+            return glint.sea
+        from simcore.environment.maps import ReflectivityMap
+        from simcore.environment.water import ocean_fraction
+        n_lat, n_lon = self.reflectivity.shape
+        grid = ReflectivityMap.from_array(np.zeros((n_lat, n_lon)), None,
+                                          np.degrees(self.lon_west_rad) + (np.arange(n_lon) + 0.5) * (360.0 / n_lon))
+        return ocean_fraction(grid)
 
     # -- scene
     def _build_scene(self, mesh):
@@ -660,6 +682,8 @@ class Renderer:
         for (_, c, w, integer), v in zip(layout, fields):
             (u2 if integer else f2)[:, c:c + w] = v
         tables["refl"] = self._refl_dr
+        if self._sea_dr is not None:
+            tables["sea"] = self._sea_dr
         if self._vis is not None:
             tables["vis"] = self._vis
         if packet is not None:
@@ -713,7 +737,8 @@ class Renderer:
         frozen recordings' key, :meth:`_run`)."""
         return (self.variant, self.sun_angular_radius_rad, self.control_variate, self.earth_radius_m,
                 self.lon_west_rad, self.reflectivity.shape, self._win is None,
-                bool(self.control_variate and self._plain.any()))
+                bool(self.control_variate and self._plain.any()),
+                None if self._glint is None else (self._glint.mss, self._glint.index))
 
     def _col(self, a, name, i=0):
         """Return column ``i`` of field ``name`` of the lanes' tasks (:class:`_Lanes`): mi.Float, or mi.UInt32 for
@@ -1030,7 +1055,7 @@ class Renderer:
         o = g3("pos") + fx * g3("U") + fy * g3("V")
         cos_d = dr.dot(g3("n"), d)
         rot = [self._vec(a, "rot", k) for k in range(3)]
-        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot, a.tables["refl"])
+        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot, a.tables["refl"], a.tables.get("sea"))
         ok = hit & (cos_sun > 0) & (cos_d > 0)
         # (the rays of lanes that read 0 whatever they meet are not traced)
         if self._win is None:
@@ -1238,7 +1263,7 @@ class Renderer:
                 acc += dr.select(in_sun, thr * v["L_sun"] * dr.select(st["delta"], w_delta,
                                                                       power(st["pdf"], mi.Float(p_sun))), 0.0)
                 if do_albedo:
-                    hit_e, cos_sun, rho = self._earth_along(st["d"], c, v["s_e"], v["rot"], a.tables["refl"])
+                    hit_e, cos_sun, rho = self._earth_along(st["d"], c, v["s_e"], v["rot"], a.tables["refl"], a.tables.get("sea"))
                     ok = out & hit_e & (cos_sun > 0)
                     L_e = rho * v["E_e"] * cos_sun * (1.0 / np.pi)
                     acc += dr.select(ok, thr * L_e * dr.select(st["delta"], 1.0, power(st["pdf"], v["p_earth"])), 0.0)
@@ -1260,7 +1285,7 @@ class Renderer:
             # (b) the Earth: a direction uniform in its cap
             if do_albedo:
                 de = self._cap_direction(v["w"], v["e1"], v["e2"], v["xmax"], r[2], r[3] * (2.0 * np.pi))
-                hit_e, cos_sun, rho = self._earth_along(de, c, v["s_e"], v["rot"], a.tables["refl"])
+                hit_e, cos_sun, rho = self._earth_along(de, c, v["s_e"], v["rot"], a.tables["refl"], a.tables.get("sea"))
                 f, pdf = bsdf.eval_pdf(ctx, si, si.to_local(de), active)
                 ok = active & hit_e & (cos_sun > 0) & (f[0] > 0)
                 ok &= ~scene.ray_test(mi.Ray3f(spawn(si, de), de), ok)
@@ -1297,10 +1322,13 @@ class Renderer:
         return total * np.pi
 
     # -- the Earth seen along a direction: shared by the albedo kernel and its proposal
-    def _earth_along(self, d, c, s, rot, refl):
+    def _earth_along(self, d, c, s, rot, refl, sea=None):
         """Return (hit, cos of the Sun at the Earth point, reflectivity there) for unit
         directions ``d`` from a point at ``-c`` from the Earth's centre (body axes); ``refl``: the reflectivity
-        map as a Dr.Jit array (the renderer's, passed in so that frozen kernels see it as an input)."""
+        map as a Dr.Jit array (the renderer's, passed in so that frozen kernels see it as an input). With the
+        renderer's glint, ``sea`` its sea fraction table (likewise): the reflectivity is then the Lambertian
+        one that gives the same radiance toward -d, ``rho + pi sea f(s, -d)`` (L = rho E cos_sun / pi + sea E f
+        cos_sun; f the Cox-Munk BRDF, :mod:`simcore.radiometry.glint`)."""
         dr, mi = self._dr, self._mi
         nlat, nlon = self.reflectivity.shape
         R = self.earth_radius_m
@@ -1319,6 +1347,13 @@ class Renderer:
         col = dr.select(col < 0, col + nlon, col)
         col = dr.clip(dr.select(col >= nlon, col - nlon, col), 0, nlon - 1)
         rho = dr.gather(mi.Float, refl, mi.UInt32(row * nlon + col))
+        if sea is not None:
+            g = self._glint
+            cos_view = -dr.dot(xe, d) * (1.0 / R)
+            q = _glint.reflected_cos2(cos_sun, cos_view, -dr.dot(s, d), g.mss, g.index, _DrOps(dr))
+            # f = q / (cos_sun cos_view); the floor only where q is 0 or the lane is dropped (cos_sun <= 0)
+            f = q / dr.maximum(cos_sun * cos_view, 1e-12)
+            rho = rho + np.pi * dr.gather(mi.Float, sea, mi.UInt32(row * nlon + col)) * f
         return hit, cos_sun, rho
 
     def _cap_direction(self, w, e1, e2, xmax, t01, phi):
@@ -1345,7 +1380,7 @@ class Renderer:
         g3 = lambda k: self._vec(a, k)  # noqa: E731
         d = self._cap_direction(g3("w"), g3("e1"), g3("e2"), self._col(a, "xmax"), t01, phi)
         rot = [self._vec(a, "rot", k) for k in range(3)]
-        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot, a.tables["refl"])
+        hit, cos_sun, rho = self._earth_along(d, g3("earth"), g3("sun"), rot, a.tables["refl"], a.tables.get("sea"))
         lit = self._well_rect(a, d, "ap_hint")[4]
         dn = dr.dot(g3("n"), d)
         # cos_sun widened by ~half a bin on the ground, so that bins the terminator crosses
