@@ -128,7 +128,11 @@ def sun_earth_angles(g, camera=None):
     }
     if camera is not None:
         nadir_body = np.asarray(g.R_body_from_ecef, float) @ nadir
-        out["view_off_nadir_deg"] = float(np.degrees(np.arccos(np.clip(camera.look_dir @ nadir_body, -1.0, 1.0))))
+        # atan2(|a x b|, a . b): well conditioned at 0 deg, where acos of a dot product one ulp below 1 is
+        # already 1.2e-6 deg (a camera looking straight down)
+        look = np.asarray(camera.look_dir, float)
+        out["view_off_nadir_deg"] = float(np.degrees(np.arctan2(np.linalg.norm(np.cross(look, nadir_body)),
+                                                                look @ nadir_body)))
     return out
 
 
