@@ -116,15 +116,20 @@ def band_curve(diode):
                             f"(--map band:DIODE)")
 
 
-def class_band_ratios(curve):
-    """Return {class: k_c}: each class's band reflectance over its broadband reflectance for the relative
-    spectral sensitivity ``curve`` (a :class:`Spectrum`), under the G173 AM0 spectrum (module docstring)."""
+def band_ratio(curve, rho):
+    """Return k = [int S E rho / int S E] / [int E rho / int E] (dimensionless): the band reflectance over the
+    broadband reflectance of the TOA reflectance ``rho`` for the relative spectral sensitivity ``curve``
+    (both :class:`Spectrum`), E the G173 AM0 spectrum (280-4000 nm)."""
     e = solar_spectrum()
-    e_all, e_band = integral_of_product(e), integral_of_product(curve, e)
+    e_band = integral_of_product(curve, e)
     if not e_band > 0:
         raise InvalidInputError(f"the curve {curve.name!r} sees none of the solar spectrum (280-4000 nm)")
-    return {c: (integral_of_product(curve, e, rho) / e_band) / (integral_of_product(e, rho) / e_all)
-            for c, rho in class_toa_reflectance().items()}
+    return (integral_of_product(curve, e, rho) / e_band) / (integral_of_product(e, rho) / integral_of_product(e))
+
+
+def class_band_ratios(curve):
+    """Return {class: k_c} (:func:`band_ratio`) of each land-cover class for the sensitivity ``curve``."""
+    return {c: band_ratio(curve, rho) for c, rho in class_toa_reflectance().items()}
 
 
 def band_factor(curve):
@@ -166,7 +171,7 @@ def parse_map_name(name):
     if head not in (BAND_ALL_SKY, BAND_CLEAR_SKY):
         return None
     if _ and not diode:
-        raise InvalidInputError(f"--map {name}: name the diode after the colon, e.g. band:BPV23F "
+        raise InvalidInputError(f"--map {name} names no diode: give one after the colon, e.g. band:BPV23F "
                                 f"({', '.join(band_diodes())}), or write band for the {DEFAULT_DIODE}")
     return ("clear" if head == BAND_CLEAR_SKY else "all"), (diode or DEFAULT_DIODE)
 
