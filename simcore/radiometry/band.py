@@ -205,3 +205,43 @@ def cloud_weather(name, scale_km=None):
     clear, all_sky = band_maps(parsed[1].upper())
     km = DEFAULT_SCALE_KM if scale_km is None else float(scale_km)
     return CloudWeather(clear, all_sky, scale_m=km * 1e3, overcast_albedo=OVERCAST_ALBEDO * CLOUD_BAND_FACTOR)
+
+
+# Places for the headline numbers (lat, lon of a CERES cell's south-west corner + 0.5): open sea, rain forest,
+# desert, ice sheet, and the class whose "pure" cells (share > 0.9) make each surface type's map-wide mean.
+HEADLINE_PLACES = {"ocean (0.5N 150.5W)": ((0.5, -150.5), "water"), "vegetation (3.5S 62.5W)": ((-3.5, -62.5), "forest"),
+                   "Sahara (23.5N 10.5E)": ((23.5, 10.5), "barren"), "snow (75.5N 40.5W)": ((75.5, -40.5), "snow_ice")}
+
+
+def shifted(curve, shift_nm):
+    """Return ``curve`` moved by ``shift_nm`` along wavelength (a band edge's uncertainty)."""
+    return Spectrum(f"{curve.name} {shift_nm:+g} nm", curve.wavelength_m + shift_nm * NM_M, curve.value, curve.unit,
+                    curve.source)
+
+
+def headline(diode=DEFAULT_DIODE):
+    """Return a dict of the issue's headline numbers for ``diode``: band clear-sky TOA reflectance and CERES
+    clear-sky at four places, the area-weighted band all-sky over TOMS 2005 ratio - 1 over cells of one class
+    (share > 0.9), and the class ratios with the band moved by -50 / +50 nm."""
+    curve, label = band_curve(diode)
+    clear_b, all_b = band_maps(str(diode).upper())
+    clear = named_map("ceres2018-clear")
+    toms = named_map("toms2005")
+    # TOMS (1 x 1.25 deg) onto the CERES grid: the TOMS cell holding each CERES cell's centre
+    cols = np.floor((clear.lon_deg - toms.lon_edges_deg[0]) / toms.dlon_deg).astype(int) % toms.n_lon
+    rows = np.floor((clear.lat_deg + 90.0) / toms.dlat_deg).astype(int)
+    toms_on = toms.values_south_first[rows][:, cols]
+    classes, f_c = class_fractions()
+    area = clear.cell_area_m2
+    out = {"diode": label, "places": {}, "band_vs_toms": {}, "ratios": class_band_ratios(curve),
+           "ratios_shift_-50nm": class_band_ratios(shifted(curve, -50.0)),
+           "ratios_shift_+50nm": class_band_ratios(shifted(curve, 50.0))}
+    for name, ((lat, lon), _) in HEADLINE_PLACES.items():
+        r, c = int(np.floor(lat + 90.0)), int(np.floor(lon + 180.0))
+        out["places"][name] = {"band_clear": float(clear_b.values[r, c]), "ceres_clear": float(clear.values[r, c]),
+                               "toms": float(toms_on[r, c])}
+    for cls in classes:
+        pure = f_c[classes.index(cls)] > 0.9
+        if pure.any():
+            out["band_vs_toms"][cls] = float(np.sum(all_b.values * area * pure) / np.sum(toms_on * area * pure) - 1)
+    return out
