@@ -101,8 +101,9 @@ def _add_render_options(p):
     p.add_argument("--extra-flat", action="store_true",
                    help="add the two optional flat diodes on top and bottom (14-diode layouts)")
     p.add_argument("--map", default="toms2005", help="reflectivity map: toms2005, ceres2018-all, "
-                   "ceres2018-clear, uniform:ALBEDO (one mean albedo, as Basilisk's ALBEDO_AVG, e.g. uniform:0.3) "
-                   "or a .npz file (default %(default)s)")
+                   "ceres2018-clear, band[:DIODE] / band-clear[:DIODE] (CERES 2018 all-sky / clear-sky seen in the "
+                   "diode's band, default diode BPW34FS; simcore/radiometry/band.py), uniform:ALBEDO (one mean "
+                   "albedo, as Basilisk's ALBEDO_AVG, e.g. uniform:0.3) or a .npz file (default %(default)s)")
     _add_cloud_options(p)
     p.add_argument("--glint", type=float, metavar="WIND_M_S",
                    help="ocean sun glint: a Cox-Munk rough-sea BRDF (wind speed at 12.5 m, m/s, e.g. 7) on the sea "
@@ -141,7 +142,7 @@ def _add_cloud_options(p, many=False):
     p.add_argument("--clouds", type=int, nargs="+" if many else None, metavar="SEED",
                    help="cloud weather: the map becomes one random realisation (seed"
                         + ("s: one run each" if many else "") + ") of clear and overcast cells whose mean over "
-                        "seeds is the all-sky map; needs --map ceres2018-all (simcore/environment/clouds.py)")
+                        "seeds is the all-sky map; needs --map ceres2018-all or band[:DIODE] (simcore/environment/clouds.py)")
     p.add_argument("--cloud-scale-km", type=float, metavar="KM",
                    help=f"correlation length of the cloud field, 200..5000 km (default {DEFAULT_SCALE_KM:g}: "
                         "cloud systems ~1600 km across)")
@@ -274,8 +275,8 @@ def cmd_view(args):
     from scenes.config import SatelliteConfig
     from scenes.view import view_epoch, view_picture
     from simcore.environment.epochs import Epochs
-    from simcore.environment.maps import named_map
     from simcore.pipeline.store import check_writable
+    from simcore.radiometry import band
     if args.config_pos and args.config and args.config_pos != args.config:
         raise InvalidInputError(f"two configurations given ({args.config_pos} and --config {args.config}); give one")
     config = args.config or args.config_pos or "tilt20_fov70"
@@ -293,13 +294,13 @@ def cmd_view(args):
         raise InvalidInputError("--cloud-scale-km sets the size of cloud weather, which needs --clouds SEED; "
                                 "add --clouds or drop --cloud-scale-km")
     if args.clouds is None:
-        rmap = named_map(args.map or "toms2005")
+        rmap = band.resolve_map(args.map or "toms2005")
     else:
-        from simcore.environment.clouds import CloudWeather, check_cloud_options
+        from simcore.environment.clouds import check_cloud_options
         if args.close_up:
             raise InvalidInputError("--clouds colours the Earth, which --close-up leaves out; drop one of them")
         check_cloud_options(args.map or "toms2005", args.clouds, args.cloud_scale_km)
-        rmap = CloudWeather.for_map(args.map, args.cloud_scale_km).realise(args.clouds)
+        rmap = band.cloud_weather(args.map, args.cloud_scale_km).realise(args.clouds)
     Epochs.from_any(args.time)
     ve = view_epoch(args.time, tle=args.tle, satellite=args.satellite, start=args.start,
                     spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude)

@@ -71,6 +71,8 @@ SCALE_RANGE_KM = (200.0, 5000.0)
 MAX_SEED = 2 ** 64 - 1
 # The all-sky maps that have a clear-sky partner on the same grid: all-sky name -> clear-sky name.
 CLOUD_PAIRS = {"ceres2018-all": "ceres2018-clear"}
+# The band maps of a diode (simcore.radiometry.band) pair the same way: 'band[:DIODE]' -> 'band-clear[:DIODE]'.
+BAND_ALL_SKY, BAND_CLEAR_SKY = "band", "band-clear"
 # Fixed entropy that keeps the cloud seeds' random streams apart from every other use of a seed.
 _STREAM = 0x636C6F756473        # "clouds"
 # Coefficients beyond lmax carry less than this share of the field's variance (they are left out, and
@@ -85,10 +87,13 @@ def clear_sky_partner(map_name):
     key = str(map_name).replace("_", "-")
     if key in CLOUD_PAIRS:
         return CLOUD_PAIRS[key]
+    head, colon, diode = key.partition(":")
+    if head == BAND_ALL_SKY:        # a diode's band pair (simcore.radiometry.band), which checks the diode
+        return BAND_CLEAR_SKY + colon + diode
     raise InvalidInputError(
         f"--clouds needs an all-sky map with a clear-sky partner, and --map {map_name} has none: cloud weather "
         f"is drawn between the clear-sky and all-sky climatologies so that its mean is the all-sky map; use "
-        f"--map {' or '.join(CLOUD_PAIRS)}")
+        f"--map {' or '.join(CLOUD_PAIRS)} or {BAND_ALL_SKY}[:DIODE]")
 
 
 def _check_seed(seed):

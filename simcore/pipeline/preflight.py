@@ -77,6 +77,7 @@ def check_numbers(opts):
         raise InvalidInputError(f"--seed must be a whole number from 0 to 2^64-1 ({MAX_SEED}), got {opts.seed}")
     if int(opts.chunk_epochs) != opts.chunk_epochs or opts.chunk_epochs < 1:
         raise InvalidInputError(f"--chunk must be a positive number of epochs, got {opts.chunk_epochs}")
+    check_band(opts.reflectivity)
     check_clouds(opts)
     if getattr(opts, "glint", None) is not None:
         from simcore.radiometry.glint import check_wind
@@ -91,6 +92,12 @@ def check_reflected_samples(n):
         raise InvalidInputError(f"--reflected-samples must be 4 m^2 for a whole m >= 8 (256, 576, 1024, 4096, ...: "
                                 f"2 paths in each of 2 m^2 strata of the diode; below {MIN_SAMPLES} the standard "
                                 f"errors are not reliable), got {n}")
+
+
+def check_band(map_name):
+    """Raise InvalidInputError if ``map_name`` is a band map ('band[:DIODE]') of a diode that has no band."""
+    from simcore.radiometry.band import check_map_name
+    check_map_name(map_name)
 
 
 def check_clouds(opts):

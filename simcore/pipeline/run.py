@@ -42,8 +42,8 @@ from simcore.pipeline import check as _check
 from simcore.constants import AU_M, E_SUN_W_M2, R_SUN_M, TSI_W_M2
 from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
-from simcore.environment.maps import named_map
-from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM, CloudWeather
+from simcore.radiometry import band
+from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
 from simcore.pipeline.preflight import REFLECTED_SAMPLES, check_map, check_numbers, check_variant, tle_age_note
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
 from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
@@ -166,9 +166,9 @@ class PreparedRun:
         self.epochs = self.geometry.epochs
         self.clouds = None
         if getattr(opts, "clouds", None) is None:
-            self.map = named_map(opts.reflectivity)
+            self.map = band.resolve_map(opts.reflectivity)
         else:
-            self.clouds = CloudWeather.for_map(opts.reflectivity, opts.cloud_scale_km)
+            self.clouds = band.cloud_weather(opts.reflectivity, opts.cloud_scale_km)
             self.map = self.clouds.realise(opts.clouds)
         self.map_refined = _refined(self.map, CHECK_REFINE)
         self.glint = self._sea_glint()
