@@ -575,8 +575,8 @@ def cmd_earth_study(args):
     for cfg in res["configs"]:
         toms, ceres, clouds, words = verdict(res, cfg)
         fmt = lambda x: "-" if x is None else f"{x:.2f}"  # noqa: E731
-        print(f"  {cfg} ({HEADLINE_ESTIMATOR}): extra error over the band map in quadrature: TOMS {fmt(toms)} deg, "
-              f"CERES {fmt(ceres)} deg; cloud weather {fmt(clouds)} deg RMS: {words}")
+        print(f"  {cfg} ({HEADLINE_ESTIMATOR}), own RMS effect on the Sun estimate: TOMS instead of the band map "
+              f"{fmt(toms)} deg, CERES {fmt(ceres)} deg, cloud weather {fmt(clouds)} deg: {words}")
     return 0
 
 

@@ -126,7 +126,7 @@ def _headline_section(F, results):
 def _error_section(F, results, cfg):
     r = results["configs"][cfg]
     lines = ["", f"## {cfg}: sunlit Sun-vector error, mean / RMS / p95 / max [deg]", "",
-             f"Dead diodes: {', '.join(F.val(f'configs.{cfg}.dead.{i}', '{:d}') for i in range(len(r['dead']))) or 'none'}"
+             f"Dead diodes: {', '.join(F.val(f'configs.{cfg}.dead.{i}', '{:d}', ()) for i in range(len(r['dead']))) or 'none'}"
              " (the estimators are told).", ""]
     rows = []
     for truth, by_map in r["errors"].items():
@@ -202,19 +202,20 @@ def _issue_section(F, results):
 
 
 def verdict(results, cfg, est=HEADLINE_ESTIMATOR):
-    """Return (toms, ceres, clouds, words): the map costs in quadrature, the weather's own RMS, and the verdict."""
-    toms = _get(results, cfg, "effects", "map_toms2005", est, "quadrature_deg")
-    ceres = _get(results, cfg, "effects", "map_ceres2018-all", est, "quadrature_deg")
+    """Return (toms, ceres, clouds, words): the own RMS effect (deg) on the Sun estimate of TOMS and of CERES on
+    board instead of the band map (truth C), of the cloud weather (C against B), and the verdict's words."""
+    toms = _get(results, cfg, "effects", "map_toms2005", est, "own_rms_deg")
+    ceres = _get(results, cfg, "effects", "map_ceres2018-all", est, "own_rms_deg")
     clouds = _get(results, cfg, "effects", "clouds", est, "own_rms_deg")
     if toms is None or clouds is None:
         return toms, ceres, clouds, "not in this span"
-    words = ("the UV map is a real error source, larger than the cloud weather no map can remove: a band-aware "
-             "on-board map is worth having" if toms > clouds else
-             "the UV map's error is smaller than the cloud weather no map can remove: the band matters less than "
-             "the weather")
-    if ceres is not None:
-        words += ("; the broadband CERES map already removes most of the UV map's error" if ceres < 0.5 * toms else
-                  "; the broadband CERES map removes less than half of it")
+    words = ("the UV map moves the Sun estimate more than the cloud weather no map can remove: the band is a "
+             "real error source and a band-aware on-board map is worth having" if toms > clouds else
+             "the UV map moves the Sun estimate less than the cloud weather no map can remove: the band matters "
+             "less than the weather")
+    if ceres is not None and toms > 0:
+        words += ("; the broadband CERES map moves it less than half as much as TOMS" if ceres < 0.5 * toms else
+                  "; the broadband CERES map moves it at least half as much as TOMS")
     return toms, ceres, clouds, words
 
 
@@ -223,14 +224,18 @@ def _verdict_section(F, results):
              "The thesis rendered its Earth with TOMS, a UV map, although its diodes see the near infrared, where "
              "oceans are darker and land brighter, and its annual mean has no clouds. With the truth rendered on the "
              "band map with glint and cloud weather, the extra Sun-vector error of each on-board map over the band "
-             f"map ({HEADLINE_ESTIMATOR}, in quadrature) against the weather's own effect:", ""]
+             f"map, their own effect on the estimate ({HEADLINE_ESTIMATOR}, RMS angle between the two estimates; the "
+             "extra RMS error in quadrature beside it), against the weather's own effect:", ""]
     for cfg in results["configs"]:
         toms, ceres, clouds, words = verdict(results, cfg)
         e = f"configs.{cfg}.effects"
-        lines.append(f"- **{cfg}**: TOMS on board {F.val(f'{e}.map_toms2005.{HEADLINE_ESTIMATOR}.quadrature_deg')} deg, "
-                     f"CERES {F.val(f'{e}.map_ceres2018-all.{HEADLINE_ESTIMATOR}.quadrature_deg')} deg, cloud weather "
-                     f"{F.val(f'{e}.clouds.{HEADLINE_ESTIMATOR}.own_rms_deg')} deg RMS, glint "
-                     f"{F.val(f'{e}.glint.{HEADLINE_ESTIMATOR}.own_rms_deg')} deg RMS: {words}.")
+        h = HEADLINE_ESTIMATOR
+        lines.append(f"- **{cfg}**: TOMS on board {F.val(f'{e}.map_toms2005.{h}.own_rms_deg')} deg "
+                     f"(quadrature {F.val(f'{e}.map_toms2005.{h}.quadrature_deg')}), CERES "
+                     f"{F.val(f'{e}.map_ceres2018-all.{h}.own_rms_deg')} deg (quadrature "
+                     f"{F.val(f'{e}.map_ceres2018-all.{h}.quadrature_deg')}), cloud weather "
+                     f"{F.val(f'{e}.clouds.{h}.own_rms_deg')} deg, glint {F.val(f'{e}.glint.{h}.own_rms_deg')} deg: "
+                     f"{words}.")
     return lines
 
 
