@@ -580,6 +580,16 @@ def cmd_earth_study(args):
     return 0
 
 
+def _add_page_study_options(p, *, folder, page, span_help):
+    """Add the options of a study with a results page: --span, --folder, --page, --allow-failed-checks."""
+    p.add_argument("--span", choices=["day", "orbits", "short"], default="day", help=span_help)
+    p.add_argument("--folder", default=folder, help="where the run files go (default %(default)s)")
+    p.add_argument("--page", help=f"where the results page goes (default {page})")
+    p.add_argument("--allow-failed-checks", action="store_true",
+                   help="use runs whose analytic check failed (refused by default) and mark their numbers "
+                        "'check FAILED' on the page")
+
+
 def _none_or_float(text):
     return None if text.lower() in ("none", "eq415", "design") else float(text)
 
@@ -776,33 +786,25 @@ def build_parser():
     w.set_defaults(func=cmd_sweep)
 
     rp = sub.add_parser("reproduce", help="the thesis' chapter-4 study on rendered irradiance, with a results page")
-    rp.add_argument("--span", choices=["day", "orbits", "short"], default="day",
-                    help="the whole day at 1 s, the thesis' two orbits 1.8e4-2.8e4 s, or a 600 s demonstration")
-    rp.add_argument("--folder", default="runs/thesis", help="where the run files go (default %(default)s)")
-    rp.add_argument("--page", help="where the results page goes (default FOLDER/page)")
+    _add_page_study_options(rp, folder="runs/thesis", page="FOLDER/page",
+                            span_help="the whole day at 1 s, the thesis' two orbits 1.8e4-2.8e4 s, or a 600 s "
+                                      "demonstration")
     rp.add_argument("--second-spin", type=float, default=0.5, metavar="DEG_S",
                     help="second tumble rate, rendered over the two orbits (default %(default)s)")
     rp.add_argument("--no-render", action="store_true", help="evaluate only the run files already there")
-    rp.add_argument("--allow-failed-checks", action="store_true",
-                    help="use runs whose analytic check failed (refused by default) and mark their numbers "
-                         "'check FAILED' on the page")
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_reproduce)
 
     es = sub.add_parser("earth-study", help="the thesis' open question: Sun-vector error with the truth on the band "
                                             "map + glint + cloud weather, the on-board model on TOMS, CERES or the "
                                             "band map; a results page")
-    es.add_argument("--span", choices=["day", "orbits", "short"], default="day",
-                    help="the whole day at 1 s (as reproduce), 1e4 s from 05:00Z, or a 600 s demonstration")
-    es.add_argument("--folder", default="runs/earth_band", help="where the run files go (default %(default)s)")
-    es.add_argument("--page", help="where the results page goes (default FOLDER/earth_band)")
+    _add_page_study_options(es, folder="runs/earth_band", page="FOLDER/earth_band",
+                            span_help="the whole day at 1 s (as reproduce), 1e4 s from 05:00Z, or a 600 s "
+                                      "demonstration")
     es.add_argument("--wind", type=float, default=7.0, metavar="M_S",
                     help="sea wind speed of the glint truths, m/s at 12.5 m (default %(default)s)")
     es.add_argument("--cloud-seeds", type=int, nargs="+", default=[1], metavar="SEED",
                     help="cloud-weather seeds: one truth C each (default 1)")
-    es.add_argument("--allow-failed-checks", action="store_true",
-                    help="use runs whose analytic check failed (refused by default) and mark their numbers "
-                         "'check FAILED' on the page")
     es.add_argument("--json", action="store_true")
     es.set_defaults(func=cmd_earth_study)
 
