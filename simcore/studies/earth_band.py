@@ -269,18 +269,18 @@ def _figure_errors(t_s, errors, sunlit, truth, config, path, estimator="model_al
 
 
 def _figure_bars(results, path, estimator="model_albedo+gain"):
-    """RMS error per on-board map (truth C pooled) and the decomposition's effects, per configuration."""
+    """RMS error per on-board map (truth C pooled) and the own RMS effect of each change, per configuration."""
     fig = Figure(figsize=(11, 5))
     ax = fig.add_subplot()
     labels = ([f"C x {m}" for m in ONBOARD_MAPS]
-              + [f"map {m}\n(quadrature)" for m in ONBOARD_MAPS if m != TRUTH_MAP]
+              + [f"{m} instead of band\n(own)" for m in ONBOARD_MAPS if m != TRUTH_MAP]
               + ["glint own", "clouds own"])
     width = 0.8 / max(len(results["configs"]), 1)
     for j, (cfg, r) in enumerate(results["configs"].items()):
         eff = r["effects"]
         vals = [eff[f"map_{m}"][estimator]["rms_with_deg"] for m in ONBOARD_MAPS if m != TRUTH_MAP]
         vals.append(eff[f"map_{ONBOARD_MAPS[0]}"][estimator]["rms_without_deg"])
-        vals += [eff[f"map_{m}"][estimator]["quadrature_deg"] for m in ONBOARD_MAPS if m != TRUTH_MAP]
+        vals += [eff[f"map_{m}"][estimator]["own_rms_deg"] for m in ONBOARD_MAPS if m != TRUTH_MAP]
         vals += [eff["glint"][estimator]["own_rms_deg"], eff["clouds"][estimator]["own_rms_deg"]]
         ax.bar(np.arange(len(labels)) + (j - (len(results["configs"]) - 1) / 2) * width, vals, width, label=cfg)
     ax.set_xticks(np.arange(len(labels)), labels, fontsize=8)
