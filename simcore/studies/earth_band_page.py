@@ -53,6 +53,8 @@ class StudyFigures(Figures):
             if parts[0] == "configs" and len(parts) > 1:
                 truth = parts[3] if len(parts) > 3 and parts[2] == "errors" else None
                 runs = [f"{parts[1]}:{truth}" if truth else parts[1]]
+                if parts[2:4] == ["effects", "glint"] or parts[2:3] == ["glint_nadir"]:
+                    runs = [f"{parts[1]}:A", f"{parts[1]}:B"]          # glint comes from truths A and B alone
         return super().val(path, fmt, runs)
 
     def issue(self, key, fmt="{:g}"):
