@@ -550,6 +550,46 @@ def cmd_reproduce(args):
     return 0
 
 
+def cmd_earth_study(args):
+    """The thesis' open question (sec. 5.2): Sun-vector error with a band-aware, glinting, cloudy Earth and
+    the on-board model on TOMS, CERES or the band map; renders what is missing, writes the results page."""
+    from simcore.studies.earth_band import check_inputs, earth_study, refuse_existing_failed
+    log = (lambda m: print(m, file=sys.stderr))
+    check_inputs(args.span, args.wind, args.cloud_seeds)          # before any folder is made
+    plan = {"span": args.span, "wind_m_s": args.wind, "cloud_seeds": args.cloud_seeds}
+    if not args.allow_failed_checks:      # before any folder is made or anything rendered
+        refuse_existing_failed(args.folder, **plan)
+    _output_folder(args.folder, "--folder")
+    if args.page:
+        _output_folder(args.page, "--page")
+    res = earth_study(args.folder, page_folder=args.page, allow_failed_checks=args.allow_failed_checks, log=log,
+                      **plan)
+    page = args.page or f"{args.folder}/earth_band"
+    failed = [label for label, r in res["runs"].items() if not r["check_pass"]]
+    if args.json:
+        print(json.dumps({"page": page, "runs": list(res["runs"]), "checks_failed": failed}))
+        return 0
+    from simcore.studies.earth_band_page import HEADLINE_ESTIMATOR, verdict
+    print(f"results page: {page}/README.md ({len(res['runs'])} runs, span {args.span})"
+          + (f"; check FAILED, marked on the page: {', '.join(failed)}" if failed else ""))
+    for cfg in res["configs"]:
+        toms, ceres, clouds, words = verdict(res, cfg)
+        fmt = lambda x: "-" if x is None else f"{x:.2f}"  # noqa: E731
+        print(f"  {cfg} ({HEADLINE_ESTIMATOR}), own RMS effect on the Sun estimate: TOMS instead of the band map "
+              f"{fmt(toms)} deg, CERES {fmt(ceres)} deg, cloud weather {fmt(clouds)} deg: {words}")
+    return 0
+
+
+def _add_page_study_options(p, *, folder, page, span_help):
+    """Add the options of a study with a results page: --span, --folder, --page, --allow-failed-checks."""
+    p.add_argument("--span", choices=["day", "orbits", "short"], default="day", help=span_help)
+    p.add_argument("--folder", default=folder, help="where the run files go (default %(default)s)")
+    p.add_argument("--page", help=f"where the results page goes (default {page})")
+    p.add_argument("--allow-failed-checks", action="store_true",
+                   help="use runs whose analytic check failed (refused by default) and mark their numbers "
+                        "'check FAILED' on the page")
+
+
 def _none_or_float(text):
     return None if text.lower() in ("none", "eq415", "design") else float(text)
 
@@ -746,18 +786,27 @@ def build_parser():
     w.set_defaults(func=cmd_sweep)
 
     rp = sub.add_parser("reproduce", help="the thesis' chapter-4 study on rendered irradiance, with a results page")
-    rp.add_argument("--span", choices=["day", "orbits", "short"], default="day",
-                    help="the whole day at 1 s, the thesis' two orbits 1.8e4-2.8e4 s, or a 600 s demonstration")
-    rp.add_argument("--folder", default="runs/thesis", help="where the run files go (default %(default)s)")
-    rp.add_argument("--page", help="where the results page goes (default FOLDER/page)")
+    _add_page_study_options(rp, folder="runs/thesis", page="FOLDER/page",
+                            span_help="the whole day at 1 s, the thesis' two orbits 1.8e4-2.8e4 s, or a 600 s "
+                                      "demonstration")
     rp.add_argument("--second-spin", type=float, default=0.5, metavar="DEG_S",
                     help="second tumble rate, rendered over the two orbits (default %(default)s)")
     rp.add_argument("--no-render", action="store_true", help="evaluate only the run files already there")
-    rp.add_argument("--allow-failed-checks", action="store_true",
-                    help="use runs whose analytic check failed (refused by default) and mark their numbers "
-                         "'check FAILED' on the page")
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_reproduce)
+
+    es = sub.add_parser("earth-study", help="the thesis' open question: Sun-vector error with the truth on the band "
+                                            "map + glint + cloud weather, the on-board model on TOMS, CERES or the "
+                                            "band map; a results page")
+    _add_page_study_options(es, folder="runs/earth_band", page="FOLDER/earth_band",
+                            span_help="the whole day at 1 s (as reproduce), 1e4 s from 05:00Z, or a 600 s "
+                                      "demonstration")
+    es.add_argument("--wind", type=float, default=7.0, metavar="M_S",
+                    help="sea wind speed of the glint truths, m/s at 12.5 m (default %(default)s)")
+    es.add_argument("--cloud-seeds", type=int, nargs="+", default=[1], metavar="SEED",
+                    help="cloud-weather seeds: one truth C each (default 1)")
+    es.add_argument("--json", action="store_true")
+    es.set_defaults(func=cmd_earth_study)
 
     ap = sub.add_parser("aperture-sweep", help="aperture height x tilt x FOV -> coverage, albedo fraction seen, "
                                                "estimator error over an orbit")

@@ -22,7 +22,8 @@ import numpy as np
 
 from simcore.radiometry import analytic
 from simcore.constants import E_SUN_W_M2
-from simcore.environment.maps import as_map, named_map
+from simcore.environment.maps import as_map
+from simcore.radiometry.band import resolve_map
 
 
 
@@ -101,7 +102,8 @@ def predict_albedo_effective(geometry, R_gcrs_from_body_est, diodes, reflectivit
     attitude estimate (e.g. :func:`previous_attitude`; NaN rows give NaN predictions);
     ``diodes``: a :class:`scenes.config.SatelliteConfig` or ``(frames (K, 3, 3), responses)``;
     ``reflectivity_map``: the on-board map (a :class:`simcore.environment.maps.ReflectivityMap` or a name
-    in :data:`simcore.environment.maps.MAP_NAMES`). The Bhanderi sum of :func:`simcore.radiometry.analytic.diode_irradiance`
+    in :data:`simcore.environment.maps.MAP_NAMES` or a band map such as ``'band'``,
+    :func:`simcore.radiometry.band.resolve_map`). The Bhanderi sum of :func:`simcore.radiometry.analytic.diode_irradiance`
     (W/m^2 at the solar constant ``e_sun_w_m2``) is scaled by E_S0 / E_sun like the Earth
     light in the sensor chain (thesis sec. 4.2.1).
     """
@@ -112,7 +114,7 @@ def predict_albedo_effective(geometry, R_gcrs_from_body_est, diodes, reflectivit
         raise ValueError(f"R_gcrs_from_body_est must be (N, 3, 3) with N = {n_ep} (one per epoch of the "
                          f"geometry), got shape {R_est.shape}")
     frames, responses = _diodes(diodes)
-    refl = named_map(reflectivity_map) if isinstance(reflectivity_map, str) else as_map(reflectivity_map)
+    refl = resolve_map(reflectivity_map) if isinstance(reflectivity_map, str) else as_map(reflectivity_map)
     out = np.full((n_ep, frames.shape[0]), np.nan)
     ok = np.all(np.isfinite(R_est), axis=(1, 2))
     if ok.any():

@@ -12,8 +12,8 @@ from simcore.environment import eclipse
 from simcore.environment.attitude import tumble
 from simcore.environment.epochs import Epochs
 from simcore.environment.geometry import compute_geometry
-from simcore.environment.maps import named_map
 from simcore.radiometry import analytic
+from simcore.radiometry.band import resolve_map
 from simcore.radiometry.onboard import predict_albedo_effective, previous_attitude
 from simcore.sensor.chain import SensorChain
 
@@ -62,7 +62,9 @@ def evaluate_cross_map(config="tilt20_fov70", *, start_s=18000, stop_s=28000, da
     ``return_errors=True`` returns ``(rows, errors)`` with ``errors`` a dict: ``'t_s'`` (N,)
     seconds from ``date`` (NaN with ``truth_irradiance``), ``'sunlit'`` (N,) bool (the
     evaluated epochs) and, per row, ``(truth_map, onboard_map, estimator)`` -> the angle
-    error (N,) in degrees (NaN where invalid).
+    error (N,) in degrees (NaN where invalid), and ``'estimates'``: per row the estimated Sun
+    direction (N, 3) in body axes (NaN where invalid). Map names may be band maps
+    (:func:`simcore.radiometry.band.resolve_map`, e.g. ``'band'``).
     """
     cfg = SatelliteConfig.load(config) if isinstance(config, str) else config
     if dead is not None:
@@ -91,7 +93,7 @@ def evaluate_cross_map(config="tilt20_fov70", *, start_s=18000, stop_s=28000, da
         for name in truth_maps:
             irr = analytic.diode_irradiance(geometry.r_sat_ecef_m, geometry.r_sun_ecef_m,
                                             geometry.R_ecef_from_body, cfg.frames, list(cfg.apertures),
-                                            map=named_map(name), backend=backend)
+                                            map=resolve_map(name), backend=backend)
             truth[name] = irr.total_w_m2
     R_est = previous_attitude(geometry.R_gcrs_from_body, lag_steps=lag_steps, sigma_deg=sigma_deg, seed=seed)
     s_true = geometry.sun_dir_body
@@ -102,7 +104,8 @@ def evaluate_cross_map(config="tilt20_fov70", *, start_s=18000, stop_s=28000, da
     ests = _estimators(cfg.normals, float(fov[0]), e_s0, live)
     preds = {}
     rows = []
-    errors = {"t_s": t_day_s if truth_irradiance is None else np.full(len(geometry), np.nan), "sunlit": sunlit}
+    errors = {"t_s": t_day_s if truth_irradiance is None else np.full(len(geometry), np.nan), "sunlit": sunlit,
+              "estimates": {}}
     for t_name, e_total in truth.items():
         e_p = chain.measure(e_total)
         for p_name in onboard_maps:
@@ -115,6 +118,7 @@ def evaluate_cross_map(config="tilt20_fov70", *, start_s=18000, stop_s=28000, da
                 s_hat, valid = f(e_p, preds[p_name])
                 err = angle_error_deg(s_hat, s_true)
                 errors[(t_name, p_name, est_name)] = err
+                errors["estimates"][(t_name, p_name, est_name)] = np.where(valid[:, None], s_hat, np.nan)
                 use = sunlit & np.isfinite(err)
                 v = err[use]
                 rows.append({"truth_map": t_name, "onboard_map": p_name, "estimator": est_name,
