@@ -258,8 +258,8 @@ def _figure_errors(t_s, errors, sunlit, truth, config, path, estimator="model_al
     for label, key in lines:
         if key in errors:
             hm, _ = hanning_mean_std(np.where(sunlit, errors[key], np.nan), window=HANNING_WINDOW)
-            ax.plot(t_s / 1e4, np.where(sunlit, hm, np.nan), lw=1.2, label=label)
-    ax.set_xlabel("time since 2016-07-02T00:00Z [1e4 s]")
+            ax.plot(t_s / 3600.0, np.where(sunlit, hm, np.nan), lw=1.2, label=label)
+    ax.set_xlabel("time since 2016-07-02T00:00Z [h]")
     ax.set_ylabel(f"Hanning mean ({HANNING_WINDOW} s) of the angle error [deg]")
     ax.set_title(f"{config}: truth {truth} ({TRUTHS[truth[0]]})")
     ax.grid(alpha=0.3)
@@ -272,9 +272,9 @@ def _figure_bars(results, path, estimator="model_albedo+gain"):
     """RMS error per on-board map (truth C pooled) and the own RMS effect of each change, per configuration."""
     fig = Figure(figsize=(11, 5))
     ax = fig.add_subplot()
-    labels = ([f"C x {m}" for m in ONBOARD_MAPS]
-              + [f"{m} instead of band\n(own)" for m in ONBOARD_MAPS if m != TRUTH_MAP]
-              + ["glint own", "clouds own"])
+    labels = ([f"truth C,\non board {m}" for m in ONBOARD_MAPS]
+              + [f"{m}\ninstead of band\n(own)" for m in ONBOARD_MAPS if m != TRUTH_MAP]
+              + ["glint\n(own)", "cloud weather\n(own)"])
     width = 0.8 / max(len(results["configs"]), 1)
     for j, (cfg, r) in enumerate(results["configs"].items()):
         eff = r["effects"]
