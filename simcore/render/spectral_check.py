@@ -1,0 +1,259 @@
+"""Spectral albedo on bare diodes: Monte Carlo over directions AND wavelengths, the check of the band maps.
+
+The band maps (:mod:`simcore.radiometry.band`) fold each CERES cell's spectrum into one band reflectance by
+quadrature. This module never reads them: each cell has the spectral reflectance they imply,
+
+    rho(lambda, cell) = a(cell) sum_c g_c(cell) rho_c(lambda) + b(cell),     g_c = f_c / rhobar_c,
+
+with the class shares f_c (MCD12C1), the class TOA spectra rho_c, rhobar_c = int E rho_c / int E the
+class's broadband reflectance, and per cell a the reflectance the shape scales (clear sky: R_clear; all
+sky: the clear state's share (1 - f) R_clear,state, plus f R_ovc where a cell is brighter than thick
+cloud) and b the grey cloud's part (f R_ovc x the cloud band factor) -- :func:`cell_spectra`. Its
+S E-weighted band mean is the band map's value exactly (linearity; :meth:`CellSpectra.band_mean`).
+
+The estimator (:func:`spectral_albedo`) draws per lane a direction d uniformly in the cone the Earth fills
+seen from the satellite (pdf 1 / (2 pi (1 - cos alpha)), sin alpha = R / |r_sat|), intersects the Earth, a
+Mitsuba ``sphere``, draws four wavelengths from the diode's S(lambda) E(lambda) and accumulates
+
+    mean_j[rho(lambda_j, cell) S(lambda_j) E(lambda_j) / p(lambda_j)] cos_sun / pi * max(0, n . d) / pdf(d)
+
+whose expectation is int S E rho_band dlambda-weighted albedo irradiance: the in-band (relative
+responsivity-weighted, thesis eq. 3.4) irradiance, W/m^2, that the band map gives when the analytic model
+(:func:`simcore.radiometry.analytic.diode_irradiance`, cosine response) is run with the solar constant
+``int S E`` (:func:`band_irradiance`).
+
+Mitsuba's spectral variant (``llvm_ad_spectral``) represents the infrared bands: its default wavelength
+sampling (``sample_rgb_spectrum``) covers only MI_CIE_MIN..MI_CIE_MAX = 360..830 nm, but a sensor's
+``srf`` (here an ``irregular`` spectrum of S E) is sampled over its own nodes, e.g. 799-1136 nm for the
+BPV23F (measured with mitsuba 3.9.1: ``Sensor.sample_wavelengths`` with the srf gave 803-1123 nm for
+1000 stratified samples; without it 360.5-827.8 nm), and ``irregular`` spectra evaluate at any wavelength.
+So the wavelengths come from ``Sensor.sample_wavelengths`` (four per lane, shifted: stratified) and the
+class spectra, S and E are ``irregular`` textures. The srf's pdf is linear between the nodes of S and E
+where S E is quadratic, so each wavelength is weighted S E / p (exact expectation, not the srf's integral).
+
+Variants: Mitsuba's variant is process-global and the renderer (:mod:`simcore.render.irradiance`) uses
+``llvm_ad_mono``. Everything here runs inside :func:`_spectral_variant`, which sets ``llvm_ad_spectral`` and
+restores the caller's variant afterwards (``mi.variant_context`` refuses when no variant was set; then the
+spectral one stays, and a :class:`~simcore.render.irradiance.Renderer` sets its own on every render anyway).
+A mono render before and after a spectral estimate gives identical results (tests/test_spectral_check.py).
+"""
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import numpy as np
+
+from simcore import _llvm
+from simcore.environment.clouds import CloudWeather
+from simcore.environment.maps import named_map
+from simcore.radiometry.band import CLOUD_BAND_FACTOR, class_fractions, class_toa_reflectance
+from simcore.radiometry.spectral import NM_M, integral_of_product, solar_spectrum
+
+SPECTRAL_VARIANT = "llvm_ad_spectral"
+KINDS = ("clear", "all")
+
+
+@dataclass(frozen=True)
+class CellSpectra:
+    """Each map cell's spectral reflectance ``a sum_c g_c rho_c(lambda) + b`` (module docstring): the class
+    spectra (``spectra``, :class:`~simcore.radiometry.spectral.Spectrum` each), the weights ``g``
+    (n_class, n_lat, n_lon), ``a`` and ``b`` (n_lat, n_lon), south-first on the 1-deg CERES grid from
+    longitude -180."""
+
+    classes: tuple
+    spectra: tuple
+    g: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    name: str
+
+    @property
+    def shape(self):
+        return self.a.shape
+
+    def at(self, wavelength_m, rows, cols):
+        """Return rho at ``wavelength_m`` in cells (``rows``, ``cols``) (numpy, broadcast together)."""
+        lam = np.asarray(wavelength_m, dtype=float)
+        shape_sum = sum(self.g[i][rows, cols] * s.at(lam) for i, s in enumerate(self.spectra))
+        return self.a[rows, cols] * shape_sum + self.b[rows, cols]
+
+    def band_mean(self, curve):
+        """Return int S E rho / int S E per cell (n_lat, n_lon): what the band map of ``curve`` should hold."""
+        e = solar_spectrum()
+        e_band = integral_of_product(curve, e)
+        k = np.array([integral_of_product(curve, e, s) / e_band for s in self.spectra])
+        return self.a * np.tensordot(k, self.g, axes=1) + self.b
+
+
+def cell_spectra(kind="clear", *, flip_shares=False):
+    """Return the :class:`CellSpectra` behind the band maps of kind ``kind`` ('clear' or 'all', the
+    CloudWeather mean); ``flip_shares`` reads the class shares north-south flipped (a deliberately wrong
+    input, for the check's power)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+    classes, f_c = class_fractions()
+    if flip_shares:
+        f_c = f_c[:, ::-1, :]
+    rho = class_toa_reflectance()
+    e = solar_spectrum()
+    e_all = integral_of_product(e)
+    spectra = tuple(rho[c] for c in classes)
+    rhobar = np.array([integral_of_product(e, s) / e_all for s in spectra])
+    g = f_c / rhobar[:, None, None]
+    clear = named_map("ceres2018-clear")
+    if kind == "clear":
+        a, b = clear.values, np.zeros(clear.shape)
+    else:
+        w = CloudWeather(clear, named_map("ceres2018-all"))
+        f = w.cloud_fraction
+        brighter = w.all_sky.values > w.overcast_albedo
+        a = (1.0 - f) * w.clear_state + np.where(brighter, f * w.cloudy_state, 0.0)
+        b = np.where(brighter, 0.0, f * CLOUD_BAND_FACTOR * w.cloudy_state)
+    name = f"CERES 2018 {kind}-sky x class spectra" + (" (shares flipped N-S)" if flip_shares else "")
+    return CellSpectra(tuple(classes), spectra, np.ascontiguousarray(g), np.asarray(a, float),
+                       np.asarray(b, float), name)
+
+
+def band_irradiance(curve):
+    """Return int S E dlambda (W/m^2) of the relative sensitivity ``curve`` over the G173 AM0 spectrum."""
+    return integral_of_product(curve, solar_spectrum())
+
+
+@dataclass(frozen=True)
+class SpectralEstimate:
+    """In-band albedo irradiance on bare diodes (W/m^2, int S E rho weighted): ``mean_w_m2`` and its standard
+    error ``se_w_m2``, (N, K), from ``samples`` direction samples (four wavelengths each) per entry."""
+
+    mean_w_m2: np.ndarray
+    se_w_m2: np.ndarray
+    samples: int
+
+
+@contextmanager
+def _spectral_variant():
+    """Run the block with Mitsuba's ``llvm_ad_spectral`` variant and restore the caller's (module docstring)."""
+    mi = _llvm.import_mitsuba()
+    previous = mi.variant()
+    mi.set_variant(SPECTRAL_VARIANT)
+    try:
+        yield mi
+    finally:
+        if previous is not None:
+            mi.set_variant(previous)
+
+
+def _irregular(mi, wavelength_nm, values):
+    return mi.load_dict({"type": "irregular", "wavelengths": ",".join(f"{x:.6f}" for x in wavelength_nm),
+                         "values": ",".join(f"{v:.9g}" for v in values)})
+
+
+def _nm(spectrum, scale=1.0):
+    return spectrum.wavelength_m / NM_M, spectrum.value * scale
+
+
+def _band_grid_nm(curve, e):
+    """Return the union of the nodes of ``curve`` and ``e`` inside ``curve``'s range, nm."""
+    w = np.unique(np.concatenate([curve.wavelength_m, e.wavelength_m]))
+    w = w[(w >= curve.wavelength_m[0]) & (w <= curve.wavelength_m[-1])]
+    return w / NM_M
+
+
+def spectral_albedo(r_sat_ecef_m, r_sun_ecef_m, normals_ecef, curve, spectra, *, samples=1 << 14, seed=0,
+                    radius_m=None):
+    """Return the :class:`SpectralEstimate` of the in-band albedo irradiance on bare (cosine) diodes of unit
+    normals ``normals_ecef`` ((K, 3) or (N, K, 3), ECEF) at N epochs (``r_sat_ecef_m``, ``r_sun_ecef_m``:
+    (N, 3) geocentric ECEF m), for the relative sensitivity ``curve`` and the cell spectra ``spectra``
+    (:class:`CellSpectra`): Monte Carlo over directions and wavelengths (module docstring), ``samples``
+    directions per diode-epoch, seeded by ``seed``. The Earth is a sphere of ``radius_m`` (default: the
+    CERES map's), the Sun's rays parallel to the geocentric Sun direction (as the analytic model's)."""
+    r_sat = np.atleast_2d(np.asarray(r_sat_ecef_m, float))
+    r_sun = np.atleast_2d(np.asarray(r_sun_ecef_m, float))
+    n_ep = r_sat.shape[0]
+    if r_sat.shape != (n_ep, 3) or r_sun.shape != (n_ep, 3):
+        raise ValueError(f"r_sat_ecef_m and r_sun_ecef_m must both be (N, 3), got {r_sat.shape} and {r_sun.shape}")
+    normals = np.asarray(normals_ecef, float)
+    if normals.ndim == 2:
+        normals = np.broadcast_to(normals, (n_ep,) + normals.shape)
+    if normals.ndim != 3 or normals.shape[0] != n_ep or normals.shape[2] != 3:
+        raise ValueError(f"normals_ecef must be (K, 3) or ({n_ep}, K, 3), got {np.shape(normals_ecef)}")
+    normals = normals / np.linalg.norm(normals, axis=2, keepdims=True)
+    n_k, n_s = normals.shape[1], int(samples)
+    if n_s < 2:
+        raise ValueError(f"samples must be at least 2 (a standard error needs two), got {samples}")
+    radius = float(named_map("ceres2018-clear").radius_m if radius_m is None else radius_m)
+    dist = np.linalg.norm(r_sat, axis=1)
+    if np.any(dist <= radius):
+        raise ValueError("every satellite position must be above the Earth's surface")
+    n_lat, n_lon = spectra.shape
+    e = solar_spectrum()
+    grid = _band_grid_nm(curve, e)
+    srf_values = curve.at(grid * NM_M) * e.at(grid * NM_M) * NM_M            # W m^-2 nm^-1
+    cos_alpha = np.sqrt(1.0 - (radius / dist) ** 2)                          # the Earth's cone, per epoch
+    rng = np.random.default_rng(seed)
+    u = rng.random((3, n_ep * n_k * n_s), dtype=np.float32)
+    # float32 1 - u can round to 0 and 1 exactly: keep the cone sample inside (0, 1)
+    u = np.clip(u, np.float32(1e-7), np.float32(1.0 - 6e-8))
+
+    dr = _llvm.import_drjit()
+    with _spectral_variant() as mi:
+        F, U = mi.Float, mi.UInt32
+        srf = _irregular(mi, grid, srf_values)
+        sensor = mi.load_dict({"type": "irradiancemeter", "srf": srf,
+                               "film": {"type": "hdrfilm", "width": 1, "height": 1, "rfilter": {"type": "box"}}})
+        s_tex = _irregular(mi, *_nm(curve))
+        e_tex = _irregular(mi, *_nm(e, NM_M))
+        class_tex = [_irregular(mi, *_nm(s)) for s in spectra.spectra]
+        scene = mi.load_dict({"type": "scene", "earth": {"type": "sphere", "center": [0.0, 0.0, 0.0],
+                                                         "radius": radius}})
+
+        lane = dr.arange(U, n_ep * n_k * n_s)
+        entry = lane // n_s                     # (epoch, diode) entry, epoch-major
+        epoch = entry // n_k
+
+        def per_epoch(values):
+            return dr.gather(F, _llvm.host_array(F, values), epoch)
+
+        def per_entry(values):
+            return dr.gather(F, _llvm.host_array(F, values), entry)
+
+        sat = mi.Point3f(*(per_epoch(r_sat[:, i]) for i in range(3)))
+        to_earth = mi.Vector3f(*(per_epoch(-r_sat[:, i] / dist) for i in range(3)))
+        sun = mi.Vector3f(*(per_epoch(r_sun[:, i] / np.linalg.norm(r_sun, axis=1)) for i in range(3)))
+        nrm = mi.Vector3f(*(per_entry(normals[:, :, i].reshape(-1)) for i in range(3)))
+        cos_a = per_epoch(cos_alpha)
+        d_local = mi.warp.square_to_uniform_cone(mi.Point2f(_llvm.host_array(F, u[0]), _llvm.host_array(F, u[1])),
+                                                 cos_a)
+        d = mi.Frame3f(to_earth).to_world(d_local)
+        inv_pdf = 2.0 * dr.pi * (1.0 - cos_a)
+
+        si = scene.ray_intersect(mi.Ray3f(sat, d))
+        hit = si.is_valid()
+        n_e = dr.normalize(si.p)                # outward normal of the sphere at the hit, from its centre
+        cos_sun = dr.maximum(dr.dot(n_e, sun), 0.0)
+        cos_d = dr.maximum(dr.dot(nrm, d), 0.0)
+        lat = dr.asin(dr.clip(n_e.z, -1.0, 1.0)) * (180.0 / dr.pi)
+        lon = dr.atan2(n_e.y, n_e.x) * (180.0 / dr.pi)
+        row = dr.clip(U(dr.floor((lat + 90.0) * (n_lat / 180.0))), 0, n_lat - 1)
+        col = dr.clip(U(dr.floor((lon + 180.0) * (n_lon / 360.0))), 0, n_lon - 1)
+        cell = row * n_lon + col
+
+        ctx = dr.zeros(mi.SurfaceInteraction3f)
+        wavelengths, _ = sensor.sample_wavelengths(ctx, _llvm.host_array(F, u[2]))
+        ctx.wavelengths = wavelengths
+        weight = s_tex.eval(ctx) * e_tex.eval(ctx) / srf.pdf_spectrum(ctx)      # S E / p, W/m^2 per lambda
+        shape = dr.zeros(mi.UnpolarizedSpectrum)
+        for i, tex in enumerate(class_tex):
+            g_i = dr.gather(F, _llvm.host_array(F, spectra.g[i]), cell)
+            shape += g_i * tex.eval(ctx)
+        a = dr.gather(F, _llvm.host_array(F, spectra.a), cell)
+        b = dr.gather(F, _llvm.host_array(F, spectra.b), cell)
+        rho_w = (a * shape + b) * weight
+        lam_mean = (rho_w[0] + rho_w[1] + rho_w[2] + rho_w[3]) * 0.25
+        value = dr.select(hit, lam_mean * cos_sun * (1.0 / dr.pi) * cos_d * inv_pdf, 0.0)
+        vals = np.array(value, dtype=np.float64).reshape(n_ep, n_k, n_s)
+        lam = np.array(wavelengths[0])
+        if lam.size and (lam.min() < grid[0] - 1e-3 or lam.max() > grid[-1] + 1e-3):
+            raise RuntimeError(f"Mitsuba sampled wavelengths {lam.min():.1f}-{lam.max():.1f} nm outside the "
+                               f"band {grid[0]:.1f}-{grid[-1]:.1f} nm")
+    mean = vals.mean(axis=2)
+    se = vals.std(axis=2, ddof=1) / np.sqrt(n_s)
+    return SpectralEstimate(mean, se, n_s)
