@@ -239,7 +239,9 @@ def spectral_albedo(r_sat_ecef_m, r_sun_ecef_m, normals_ecef, curve, spectra, *,
         ctx = dr.zeros(mi.SurfaceInteraction3f)
         wavelengths, _ = sensor.sample_wavelengths(ctx, _llvm.host_array(F, u[2]))
         ctx.wavelengths = wavelengths
-        weight = s_tex.eval(ctx) * e_tex.eval(ctx) / srf.pdf_spectrum(ctx)      # S E / p, W/m^2 per lambda
+        pdf = srf.pdf_spectrum(ctx)
+        # S E / p (W/m^2 per wavelength); at a band end where S = 0 the pdf is 0 too, and so is the weight
+        weight = dr.select(pdf > 0, s_tex.eval(ctx) * e_tex.eval(ctx) / dr.maximum(pdf, 1e-30), 0.0)
         shape = dr.zeros(mi.UnpolarizedSpectrum)
         for i, tex in enumerate(class_tex):
             g_i = dr.gather(F, _llvm.host_array(F, spectra.g[i]), cell)
@@ -257,3 +259,125 @@ def spectral_albedo(r_sat_ecef_m, r_sun_ecef_m, normals_ecef, curve, spectra, *,
     mean = vals.mean(axis=2)
     se = vals.std(axis=2, ddof=1) / np.sqrt(n_s)
     return SpectralEstimate(mean, se, n_s)
+
+
+# ---------------------------------------------------------------------------------------------- the comparison
+DEFAULT_START = "2016-07-02T00:45:00Z"      # the default orbit in sunlight (sub-satellite Sun zenith 13-65 deg)
+DEFAULT_STEP_S = 300.0
+# Diode normals in the local frame (x: horizontal toward the Sun's azimuth, y: x cross z... , z: nadir)
+NORMALS_LOCAL = {"nadir": (0.0, 0.0, 1.0),
+                 "45 sunward": (np.sqrt(0.5), 0.0, np.sqrt(0.5)),
+                 "45 anti-sun": (-np.sqrt(0.5), 0.0, np.sqrt(0.5)),
+                 "horizon sunward": (1.0, 0.0, 0.0),
+                 "horizon side": (0.0, 1.0, 0.0)}
+REFINE = 3          # the analytic reference sums cells refined 3 x 3; its error bound from the native sum
+
+
+def local_frames(r_sat_ecef_m, r_sun_ecef_m):
+    """Return R_ecef_from_local (N, 3, 3): columns x (horizontal toward the Sun's azimuth), y = z cross x, z
+    (nadir)."""
+    z = -r_sat_ecef_m / np.linalg.norm(r_sat_ecef_m, axis=1, keepdims=True)
+    s = r_sun_ecef_m / np.linalg.norm(r_sun_ecef_m, axis=1, keepdims=True)
+    x = s - np.sum(s * z, axis=1, keepdims=True) * z
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=2)
+
+
+def default_geometry(n_epochs=6, start=DEFAULT_START, step_s=DEFAULT_STEP_S):
+    """Return (r_sat_ecef_m, r_sun_ecef_m), (N, 3) each, of ``n_epochs`` epochs of the default orbit from
+    ``start`` every ``step_s`` seconds."""
+    from simcore.environment.epochs import Epochs
+    from simcore.environment.geometry import compute_geometry
+    from simcore.environment.orbit import Orbit
+    g = compute_geometry(Orbit.default(), Epochs.range(start, (int(n_epochs) - 0.5) * step_s, step_s))
+    return g.r_sat_ecef_m[:n_epochs], g.r_sun_ecef_m[:n_epochs]
+
+
+def _refined(values, factor):
+    from simcore.environment.maps import ReflectivityMap
+    v = np.repeat(np.repeat(values, factor, axis=0), factor, axis=1)
+    lat = np.linspace(-90.0, 90.0, v.shape[0] + 1)
+    lon = np.linspace(-180.0, 180.0, v.shape[1] + 1)
+    return ReflectivityMap.from_array(v, 0.5 * (lat[1:] + lat[:-1]), 0.5 * (lon[1:] + lon[:-1]))
+
+
+def band_map_reference(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_local, normals_local, band_values, e_band_w_m2):
+    """Return (albedo (N, K) W/m^2, its discretisation bound (N, K)): the analytic model with bare (cosine)
+    diodes on the band map ``band_values`` (180 x 360 south-first), solar constant ``e_band_w_m2``, cells
+    refined :data:`REFINE` x :data:`REFINE`; the bound is |native - refined| / (REFINE^2 - 1) (second order,
+    as :func:`simcore.pipeline.check.discretisation_bound`)."""
+    from simcore.radiometry.analytic import diode_irradiance
+    from simcore.radiometry.response import CosineResponse
+    from simcore.shapes.aperture import diode_frame
+    frames = np.stack([diode_frame(np.asarray(n, float)) for n in normals_local])
+    out = []
+    for f in (1, REFINE):
+        res = diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_local, frames, CosineResponse(),
+                               map=_refined(band_values, f), e_sun_w_m2=e_band_w_m2, eclipse=None, direct=False,
+                               precision="double")
+        out.append(res.albedo_w_m2)
+    return out[1], np.abs(out[0] - out[1]) / (REFINE ** 2 - 1.0)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Spectral estimate vs the band map's analytic albedo, (N, K) each: ``spectral``, ``se``, ``reference``,
+    ``disc`` (the reference's discretisation bound), ``z`` = (spectral - reference) / sqrt(se^2 + disc^2), NaN
+    where both read an exact 0 (no sunlit Earth in the diode's half-space: nothing to compare)."""
+
+    diode: str
+    label: str
+    normals: tuple
+    spectral: np.ndarray
+    se: np.ndarray
+    reference: np.ndarray
+    disc: np.ndarray
+    z: np.ndarray
+
+    @property
+    def n(self):
+        """Return the number of diode-epochs compared (finite z)."""
+        return int(np.sum(np.isfinite(self.z)))
+
+    @property
+    def pooled_z(self):
+        """Return sum z / sqrt(n) over the finite z: N(0, 1) when the estimates agree."""
+        z = self.z[np.isfinite(self.z)]
+        return float(np.sum(z) / np.sqrt(z.size)) if z.size else float("nan")
+
+    @property
+    def max_abs_z(self):
+        z = self.z[np.isfinite(self.z)]
+        return float(np.max(np.abs(z))) if z.size else float("nan")
+
+
+def compare(diode="BPW34FS", *, kind="clear", n_epochs=6, samples=1 << 14, seed=0, normals=None,
+            flip_shares=False, sampling_diode=None, geometry=None):
+    """Return the :class:`Comparison` of :func:`spectral_albedo` (class shares and spectra) with the analytic
+    model on ``diode``'s band map of ``kind`` ('clear' or 'all'), at ``n_epochs`` sunlit epochs of the default
+    orbit (or ``geometry`` = (r_sat, r_sun)) for the normals ``normals`` (names of :data:`NORMALS_LOCAL`,
+    default all). Deliberately wrong inputs: ``flip_shares`` (class shares read north-south flipped),
+    ``sampling_diode`` (wavelengths drawn from another diode's band)."""
+    from simcore.radiometry.band import band_curve
+    curve, label = band_curve(diode)
+    sample_curve = curve if sampling_diode is None else band_curve(sampling_diode)[0]
+    names = tuple(NORMALS_LOCAL) if normals is None else tuple(normals)
+    unknown = [n for n in names if n not in NORMALS_LOCAL]
+    if unknown:
+        raise ValueError(f"unknown normals {unknown}; choose from {list(NORMALS_LOCAL)}")
+    n_local = np.array([NORMALS_LOCAL[n] for n in names])
+    r_sat, r_sun = default_geometry(n_epochs) if geometry is None else geometry
+    rot = local_frames(r_sat, r_sun)
+    normals_ecef = np.einsum("nij,kj->nki", rot, n_local)
+    truth = cell_spectra(kind)
+    spectra = cell_spectra(kind, flip_shares=True) if flip_shares else truth
+    e_band = band_irradiance(curve)
+    est = spectral_albedo(r_sat, r_sun, normals_ecef, sample_curve, spectra, samples=samples, seed=seed)
+    scale = e_band / band_irradiance(sample_curve)     # the wrong band's estimate in the right band's units
+    ref, disc = band_map_reference(r_sat, r_sun, rot, n_local, truth.band_mean(curve), e_band)
+    spec, se = est.mean_w_m2 * scale, est.se_w_m2 * scale
+    var = se ** 2 + disc ** 2
+    z = np.full(var.shape, np.nan)
+    np.divide(spec - ref, np.sqrt(var), out=z, where=var > 0)
+    return Comparison(str(diode), label, names, spec, se, ref, disc, z)
