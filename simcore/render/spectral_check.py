@@ -157,6 +157,24 @@ def _band_grid_nm(curve, e):
     return w / NM_M
 
 
+def _band_sampler(mi, curve):
+    """Return (sensor, srf, S, E): an ``irradiancemeter`` whose srf is the ``irregular`` spectrum S E on the
+    nodes of both inside the band (W m^-2 nm^-1), and S and E as ``irregular`` spectra (current variant)."""
+    e = solar_spectrum()
+    grid = _band_grid_nm(curve, e)
+    srf = _irregular(mi, grid, curve.at(grid * NM_M) * e.at(grid * NM_M) * NM_M)
+    sensor = mi.load_dict({"type": "irradiancemeter", "srf": srf,
+                           "film": {"type": "hdrfilm", "width": 1, "height": 1, "rfilter": {"type": "box"}}})
+    return sensor, srf, _irregular(mi, *_nm(curve)), _irregular(mi, *_nm(e, NM_M))
+
+
+def _band_weight(dr, mi, sampler, ctx):
+    """Return S E / p at ``ctx.wavelengths`` (W/m^2 per wavelength; 0 at a band end where S and p are 0)."""
+    _, srf, s_tex, e_tex = sampler
+    pdf = srf.pdf_spectrum(ctx)
+    return dr.select(pdf > 0, s_tex.eval(ctx) * e_tex.eval(ctx) / dr.maximum(pdf, 1e-30), 0.0)
+
+
 def spectral_albedo(r_sat_ecef_m, r_sun_ecef_m, normals_ecef, curve, spectra, *, samples=1 << 14, seed=0,
                     radius_m=None):
     """Return the :class:`SpectralEstimate` of the in-band albedo irradiance on bare (cosine) diodes of unit
@@ -184,9 +202,7 @@ def spectral_albedo(r_sat_ecef_m, r_sun_ecef_m, normals_ecef, curve, spectra, *,
     if np.any(dist <= radius):
         raise ValueError("every satellite position must be above the Earth's surface")
     n_lat, n_lon = spectra.shape
-    e = solar_spectrum()
-    grid = _band_grid_nm(curve, e)
-    srf_values = curve.at(grid * NM_M) * e.at(grid * NM_M) * NM_M            # W m^-2 nm^-1
+    grid = _band_grid_nm(curve, solar_spectrum())
     cos_alpha = np.sqrt(1.0 - (radius / dist) ** 2)                          # the Earth's cone, per epoch
     rng = np.random.default_rng(seed)
     u = rng.random((3, n_ep * n_k * n_s), dtype=np.float32)
@@ -196,11 +212,7 @@ def spectral_albedo(r_sat_ecef_m, r_sun_ecef_m, normals_ecef, curve, spectra, *,
     dr = _llvm.import_drjit()
     with _spectral_variant() as mi:
         F, U = mi.Float, mi.UInt32
-        srf = _irregular(mi, grid, srf_values)
-        sensor = mi.load_dict({"type": "irradiancemeter", "srf": srf,
-                               "film": {"type": "hdrfilm", "width": 1, "height": 1, "rfilter": {"type": "box"}}})
-        s_tex = _irregular(mi, *_nm(curve))
-        e_tex = _irregular(mi, *_nm(e, NM_M))
+        sampler = _band_sampler(mi, curve)
         class_tex = [_irregular(mi, *_nm(s)) for s in spectra.spectra]
         scene = mi.load_dict({"type": "scene", "earth": {"type": "sphere", "center": [0.0, 0.0, 0.0],
                                                          "radius": radius}})
@@ -237,11 +249,9 @@ def spectral_albedo(r_sat_ecef_m, r_sun_ecef_m, normals_ecef, curve, spectra, *,
         cell = row * n_lon + col
 
         ctx = dr.zeros(mi.SurfaceInteraction3f)
-        wavelengths, _ = sensor.sample_wavelengths(ctx, _llvm.host_array(F, u[2]))
+        wavelengths, _ = sampler[0].sample_wavelengths(ctx, _llvm.host_array(F, u[2]))
         ctx.wavelengths = wavelengths
-        pdf = srf.pdf_spectrum(ctx)
-        # S E / p (W/m^2 per wavelength); at a band end where S = 0 the pdf is 0 too, and so is the weight
-        weight = dr.select(pdf > 0, s_tex.eval(ctx) * e_tex.eval(ctx) / dr.maximum(pdf, 1e-30), 0.0)
+        weight = _band_weight(dr, mi, sampler, ctx)
         shape = dr.zeros(mi.UnpolarizedSpectrum)
         for i, tex in enumerate(class_tex):
             g_i = dr.gather(F, _llvm.host_array(F, spectra.g[i]), cell)
@@ -381,3 +391,34 @@ def compare(diode="BPW34FS", *, kind="clear", n_epochs=6, samples=1 << 14, seed=
     z = np.full(var.shape, np.nan)
     np.divide(spec - ref, np.sqrt(var), out=z, where=var > 0)
     return Comparison(str(diode), label, names, spec, se, ref, disc, z)
+
+
+FALSE_ALARM = 1e-3      # the check's chance of failing when the estimates agree (half on the pooled z, half on the max)
+
+
+def limits(n):
+    """Return (pooled |z| limit, max |z| limit) for ``n`` entries: each side :data:`FALSE_ALARM` / 2 two-sided,
+    the max by Bonferroni over the n entries."""
+    from scipy import stats
+    return float(stats.norm.isf(FALSE_ALARM / 4)), float(stats.norm.isf(FALSE_ALARM / 4 / max(int(n), 1)))
+
+
+def agrees(comparison):
+    """Return True when ``comparison``'s pooled and largest |z| are inside :func:`limits`."""
+    pooled, largest = limits(comparison.n)
+    return abs(comparison.pooled_z) < pooled and comparison.max_abs_z < largest
+
+
+def band_wavelengths_nm(curve, u):
+    """Return (wavelengths (n, 4) nm, weight (n, 4) W/m^2) that Mitsuba's ``llvm_ad_spectral`` sensor with the
+    srf S E (``curve`` times G173) draws for the uniform numbers ``u`` (n,): four shifted wavelengths each, and
+    S E / p (whose mean is int S E)."""
+    dr = _llvm.import_drjit()
+    with _spectral_variant() as mi:
+        sampler = _band_sampler(mi, curve)
+        ctx = dr.zeros(mi.SurfaceInteraction3f)
+        wl, _ = sampler[0].sample_wavelengths(ctx, _llvm.host_array(mi.Float, u))
+        ctx.wavelengths = wl
+        w = _band_weight(dr, mi, sampler, ctx)
+        return (np.stack([np.array(wl[i], float) for i in range(4)], axis=1),
+                np.stack([np.array(w[i], float) for i in range(4)], axis=1))
