@@ -274,7 +274,8 @@ def spectral_albedo(r_sat_ecef_m, r_sun_ecef_m, normals_ecef, curve, spectra, *,
 # ---------------------------------------------------------------------------------------------- the comparison
 DEFAULT_START = "2016-07-02T00:45:00Z"      # the default orbit in sunlight (sub-satellite Sun zenith 13-65 deg)
 DEFAULT_STEP_S = 300.0
-# Diode normals in the local frame (x: horizontal toward the Sun's azimuth, y: x cross z... , z: nadir)
+SUNLIT_EPOCHS = 8           # 00:45 to 01:20 is sunlit (the satellite enters the Earth's shadow near 01:25)
+# Diode normals in the local frame (x: horizontal toward the Sun's azimuth, y = z cross x, z: nadir)
 NORMALS_LOCAL = {"nadir": (0.0, 0.0, 1.0),
                  "45 sunward": (np.sqrt(0.5), 0.0, np.sqrt(0.5)),
                  "45 anti-sun": (-np.sqrt(0.5), 0.0, np.sqrt(0.5)),
