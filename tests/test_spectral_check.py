@@ -100,3 +100,18 @@ def test_bad_input_says_what_is_expected():
         sc.compare("BPW34FS", normals=("zenith",))
     with pytest.raises(ValueError, match="kind"):
         sc.cell_spectra("cloudy")
+
+
+def test_cli_table_exit_status_and_refusals(capsys):
+    import json
+    from simcore.cli import main
+    base = ["spectral-check", "--diode", "BPW34FS", "--epochs", "2", "--samples", "4096", "--json"]
+    assert main(base) == 0
+    row = json.loads(capsys.readouterr().out)["rows"][0]
+    assert row["agrees"] and row["n"] == 10 and len(row["entries"]) == 10
+    assert main(base + ["--flip-shares"]) == 1                # the wrong input on purpose: exit 1
+    assert not json.loads(capsys.readouterr().out)["rows"][0]["agrees"]
+    for bad, words in ((["--diode", "BPW43"], "no band for diode"), (["--epochs", "9"], "--epochs must be 1 to 8")):
+        assert main(["spectral-check"] + bad) == 2
+        err = capsys.readouterr().err.strip()
+        assert words in err and len(err.splitlines()) == 1, err
