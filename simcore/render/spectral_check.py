@@ -17,8 +17,8 @@ Mitsuba ``sphere``, draws four wavelengths from the diode's S(lambda) E(lambda) 
 
     mean_j[rho(lambda_j, cell) S(lambda_j) E(lambda_j) / p(lambda_j)] cos_sun / pi * max(0, n . d) / pdf(d)
 
-whose expectation is int S E rho_band dlambda-weighted albedo irradiance: the in-band (relative
-responsivity-weighted, thesis eq. 3.4) irradiance, W/m^2, that the band map gives when the analytic model
+whose expectation is the in-band albedo irradiance (weighted by the relative responsivity S, thesis
+eq. 3.4; W/m^2): int S E dlambda times the band reflectance of each cell, i.e. what the band map gives when the analytic model
 (:func:`simcore.radiometry.analytic.diode_irradiance`, cosine response) is run with the solar constant
 ``int S E`` (:func:`band_irradiance`).
 
