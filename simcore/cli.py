@@ -662,6 +662,72 @@ def _add_attitude_study_parser(sub):
     return p
 
 
+def cmd_spectral_check(args):
+    """Spectral Monte Carlo (directions x wavelengths) vs the analytic albedo on each diode's band map: z table."""
+    from simcore.render import spectral_check as sc
+    if not 1 <= args.epochs <= sc.SUNLIT_EPOCHS:
+        raise InvalidInputError(f"--epochs must be 1 to {sc.SUNLIT_EPOCHS} (the default orbit is sunlit for "
+                                f"{sc.SUNLIT_EPOCHS} epochs {sc.DEFAULT_STEP_S:g} s apart from {sc.DEFAULT_START}), "
+                                f"got {args.epochs}")
+    if args.samples < 64:
+        raise InvalidInputError(f"--samples must be at least 64 directions per diode-epoch, got {args.samples}")
+    wrong = {"flip_shares": args.flip_shares, "sampling_diode": args.sampling_diode}
+    geometry = sc.default_geometry(args.epochs)
+    rows = []
+    for i, diode in enumerate(args.diode):
+        c = sc.compare(diode, kind=args.map, n_epochs=args.epochs, samples=args.samples, seed=args.seed + i,
+                       geometry=geometry, **wrong)
+        pooled, largest = sc.limits(c.n)
+        rows.append({"diode": c.label, "map": args.map, "n": c.n, "pooled_z": round(c.pooled_z, 3),
+                     "max_abs_z": round(c.max_abs_z, 3), "pooled_limit": round(pooled, 3),
+                     "max_limit": round(largest, 3), "median_rel_se": float(np.nanmedian(c.se / c.reference)),
+                     "agrees": sc.agrees(c),
+                     "entries": [{"epoch": int(n), "normal": c.normals[k], "spectral_w_m2": float(c.spectral[n, k]),
+                                  "se_w_m2": float(c.se[n, k]), "band_map_w_m2": float(c.reference[n, k]),
+                                  "z": float(c.z[n, k])} for n in range(c.z.shape[0]) for k in range(c.z.shape[1])]})
+    if args.json:
+        print(json.dumps({"wrong_input": {k: v for k, v in wrong.items() if v}, "rows": rows}))
+    else:
+        note = "".join([" WRONG INPUT: class shares flipped north-south." if args.flip_shares else "",
+                        f" WRONG INPUT: wavelengths from {args.sampling_diode}'s band." if args.sampling_diode else ""])
+        print(f"spectral check: Monte Carlo over directions and wavelengths (Mitsuba {sc.SPECTRAL_VARIANT}, srf = S E, "
+              f"class shares x class spectra) vs the analytic albedo on the band map ({sc.REFINE}x{sc.REFINE} refined), "
+              f"{args.epochs} epochs from {sc.DEFAULT_START} every {sc.DEFAULT_STEP_S:g} s x {len(sc.NORMALS_LOCAL)} "
+              f"bare diode normals, {args.samples} directions x 4 wavelengths each; in-band W/m^2.{note}")
+        print(f"{'diode':<26} {'map':<5} {'n':>3} {'pooled z':>9} {'max |z|':>8} {'limits':>12} {'rel SE':>7}  verdict")
+        for r in rows:
+            print(f"{r['diode']:<26} {r['map']:<5} {r['n']:>3} {r['pooled_z']:>9.2f} {r['max_abs_z']:>8.2f} "
+                  f"{r['pooled_limit']:>5.2f}/{r['max_limit']:<6.2f} {r['median_rel_se']:>7.4f}  "
+                  f"{'agrees' if r['agrees'] else 'DIFFERS'}")
+            if args.verbose:
+                for e in r["entries"]:
+                    print(f"    epoch {e['epoch']} {e['normal']:<16} spectral {e['spectral_w_m2']:9.4f} "
+                          f"+- {e['se_w_m2']:.4f}  band map {e['band_map_w_m2']:9.4f}  z {e['z']:6.2f}")
+        print(f"limits: |pooled z| and max |z| at a false-alarm rate of {sc.FALSE_ALARM:g} per diode")
+    return 0 if all(r["agrees"] for r in rows) else 1
+
+
+def _add_spectral_check_parser(sub):
+    """Add ``sunsim spectral-check`` to the subparsers."""
+    from simcore.radiometry.band import DEFAULT_DIODE
+    p = sub.add_parser("spectral-check", help="spectral Monte Carlo (Mitsuba llvm_ad_spectral, the diode's band) "
+                                              "vs the band maps: z table (exit 1 when they differ)")
+    p.add_argument("--diode", nargs="+", default=[DEFAULT_DIODE, "SFH2430", "BPW34"], metavar="D",
+                   help="diodes with a band (default: %(default)s)")
+    p.add_argument("--map", choices=["clear", "all"], default="clear", help="band map kind (default %(default)s)")
+    p.add_argument("--epochs", type=int, default=6, help="sunlit epochs of the default orbit (default %(default)s)")
+    p.add_argument("--samples", type=int, default=1 << 16, help="directions per diode-epoch (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the first diode (the next ones: +1, +2, ...)")
+    p.add_argument("--flip-shares", action="store_true", help="WRONG INPUT on purpose: class shares read "
+                                                              "north-south flipped (the check must fail)")
+    p.add_argument("--sampling-diode", metavar="D", help="WRONG INPUT on purpose: draw the wavelengths from this "
+                                                          "diode's band (the check must fail)")
+    p.add_argument("-v", "--verbose", action="store_true", help="one line per diode-epoch and normal")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_spectral_check)
+    return p
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {__version__}")
@@ -815,6 +881,7 @@ def build_parser():
     ap.set_defaults(func=cmd_aperture_sweep)
 
     _add_attitude_study_parser(sub)
+    _add_spectral_check_parser(sub)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)
