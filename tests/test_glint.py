@@ -25,6 +25,23 @@ def _fresnel_snell(theta_i_rad, n=N_WATER):
     return np.where(ti > 1e-6, 0.5 * (rs ** 2 + rp ** 2), ((n - 1) / (n + 1)) ** 2)
 
 
+def _smith_g(mu_i, mu_o, mss):
+    """Return Smith's height-correlated shadowing-masking factor 1 / (1 + Lambda_i + Lambda_o) from Lambda's
+    definition, not the module's erf form: 1 + Lambda(theta) = E[max(0, cos theta - sin theta z)] / cos theta, the
+    mean area of the facets facing a direction over the mean surface's, with z the slope along the direction's
+    azimuth, N(0, mss / 2) for Cox-Munk's isotropic slopes (Smith 1967): the normal partial expectation
+    E[max(0, b - z)] = b Phi(b / tau) + tau phi(b / tau), b = cot theta, tau^2 = mss / 2."""
+    from scipy.stats import norm
+    tau = np.sqrt(mss / 2.0)
+
+    def one_plus_lambda(mu):
+        mu = np.clip(np.asarray(mu, float), 1e-5, 1.0)
+        tan = np.sqrt(1.0 - mu * mu) / mu
+        b = 1.0 / np.maximum(tan, 1e-300)
+        return norm.cdf(b / tau) + tau * tan * norm.pdf(b / tau)
+    return 1.0 / (one_plus_lambda(mu_i) + one_plus_lambda(mu_o) - 1.0)
+
+
 def _hemispherical(theta_s_deg, mss, index=N_WATER, n_mu=1000, n_phi=1024):
     """Return integral over the upper hemisphere of f(s, v) cos(theta_v) d omega_v: Gauss-Legendre in
     cos(theta_v) times the midpoint rule in azimuth (the lobe is ~2 sigma = 20 deg wide at 7 m/s: hundreds
@@ -60,7 +77,8 @@ def _facet_average(theta_s_deg, mss, n=N_WATER, half_width_sigmas=8.0, m=1001):
     cc = np.clip(c, 1e-12, 1.0)
     rho = _fresnel_snell(np.arccos(cc), n)
     area = (c / nf[..., 2]) / np.cos(th)
-    return float(np.sum(np.where(ok, rho * area * p, 0.0)) * (2 * half / m) ** 2)
+    g = _smith_g(np.cos(th), r_z, mss)             # hidden from the Sun or from the mirrored ray's observer
+    return float(np.sum(np.where(ok, rho * area * p * g, 0.0)) * (2 * half / m) ** 2)
 
 
 # ---- Fresnel ------------------------------------------------------------------------------------
@@ -144,7 +162,7 @@ def test_peak_at_the_specular_direction():
         assert np.degrees(thv[i]) >= zen and abs(abs(np.degrees(phv[j])) - 180.0) <= 0.5
         # and its value there is rho(theta_s) / (4 pi sigma^2 cos theta_s) (beta = 0: p(0) = 1 / (pi sigma^2))
         spec = np.array([-np.sin(th), 0.0, np.cos(th)])
-        expect = _fresnel_snell(th) / (4 * np.pi * mss * np.cos(th) ** 2)
+        expect = _fresnel_snell(th) / (4 * np.pi * mss * np.cos(th) ** 2) * _smith_g(np.cos(th), np.cos(th), mss)
         assert gl.brdf([0, 0, 1.0], s, spec, mss) == pytest.approx(expect, rel=1e-10)
         assert gl.brdf([0, 0, 1.0], s, spec, mss, index=1.5) != pytest.approx(expect, rel=1e-2)
         assert gl.brdf([0, 0, 1.0], s, spec, 0.003 + 0.0512 * 7) != pytest.approx(expect, rel=1e-2)
@@ -231,7 +249,8 @@ def _glint_quadrature(sun_unit, mss, index=N_WATER, altitude_m=665e3, n_g=800, n
     h /= np.linalg.norm(h, axis=-1, keepdims=True)
     cos_b = np.sum(nrm * h, -1)
     p = np.exp(-(1 / cos_b ** 2 - 1) / mss) / (np.pi * mss)
-    f_mu_mu = _fresnel_snell(np.arccos(np.clip(h @ sun_unit, 0, 1)), index) * p / (4 * cos_b ** 4)
+    f_mu_mu = (_fresnel_snell(np.arccos(np.clip(h @ sun_unit, 0, 1)), index) * p / (4 * cos_b ** 4)
+               * _smith_g(np.clip(mu_i, 1e-5, 1), np.clip(mu_o, 1e-5, 1), mss))
     cos_d = np.maximum(v[..., 0], 0.0)           # diode normal -x; the direction to the cell is -v
     val = np.where((mu_i > 0) & (mu_o > 0), E_SUN * f_mu_mu * cos_d / d ** 2, 0.0) * R_M ** 2 * np.sin(G)
     return float(np.sum(val * w_g[:, None]) * (2 * np.pi / n_psi))

@@ -330,7 +330,7 @@ class _DrJitOps:
         self.where = dr.select
         self.sqrt, self.exp, self.log, self.floor = dr.sqrt, dr.exp, dr.log, dr.floor   # (the window's kernel)
         self.tiny = tiny
-        self.asin = dr.asin
+        self.asin, self.erf = dr.asin, dr.erf
 
 
 def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None,

@@ -20,21 +20,29 @@ Tanaka 1983, J. Quant. Spectrosc. Radiat. Transfer 29, 521, with their shadowing
 with beta the facet's tilt (``cos beta = n . h``) and theta_s, theta_v the zeniths of the Sun and the
 observer over the mean surface (normal ``n``). It is reciprocal, f(s, v) = f(v, s).
 
-No Smith shadowing or hiding of facets by their neighbours and no multiple reflections. The albedo of this
-surface, ``integral f cos(theta_v) d omega_v``, is then the mean over the facets of their Fresnel share
-weighted by their area seen from the Sun (``tests/test_glint.py`` checks that identity in slope space). It
-equals the flat sea's Fresnel reflectance ``rho(cos theta_s)`` to 1 % only on a calm sea: at W = 0
-(sigma^2 = 0.003) +0.1/+0.5/+0.9 % at 20/40/60 deg solar zenith; at 2 m/s +0.4/+2.4/+3.8 %, at 7 m/s
-+1.4/+7.0/+4.4 % (tilted facets see the Sun at larger local angles, where water reflects more). Smith
-shadowing would not close that gap at these angles (its factor for the Sun at 40 deg and 7 m/s,
-cot(theta)/sigma = 6, differs from 1 by ~1e-17; masking dims only the reflections near the horizon); it
-matters toward a grazing Sun, where this model overestimates. Neither are whitecaps, the light scattered
-inside the water nor the sky's reflection modelled: the glint is the specular part of the sea alone, meant
-to be added to a map whose reflectivity holds the diffuse rest (:mod:`simcore.radiometry.analytic`).
+Facets hidden by their neighbours, from the Sun (shadowing) or from the observer (masking), reflect nothing
+seen: Smith's height-correlated factor for these Gaussian slopes (B. G. Smith 1967, IEEE Trans. Antennas
+Propag. 15, 668; the height-correlated form, E. Heitz 2014, J. Comput. Graph. Tech. 3(2), 48, eq. 99; Cox-Munk's
+slopes are Beckmann's distribution with alpha^2 = sigma^2, B. Walter et al. 2007, EGSR, eq. 27)::
+
+    G = 1 / (1 + Lambda(theta_s) + Lambda(theta_v)),
+    Lambda(theta) = (exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2,   a = cot(theta) / sigma
+
+multiplies f. It is 1 to ~1e-17 for the Sun at 40 deg and 7 m/s (a = 6) and goes to 0 toward either horizon:
+without it f cos(theta_s) cos(theta_v) stays finite there, and a sea at the terminator seen at the limb with
+the Sun just behind it (the satellite at eclipse entry or exit) would glint as brightly as at noon, in a sliver
+of cells no sampling could find. No multiple reflections. The albedo of this surface,
+``integral f cos(theta_v) d omega_v``, is then the mean over the facets the observer is not masked from of their
+Fresnel share weighted by their area seen from the Sun (``tests/test_glint.py`` checks that identity in slope
+space). It equals the flat sea's Fresnel reflectance ``rho(cos theta_s)`` to 1 % only on a calm sea: at W = 0
+(sigma^2 = 0.003) +0.1/+0.5/+0.9 % at 20/40/60 deg solar zenith; with wind, tilted facets see the Sun at larger
+local angles, where water reflects more (at 7 m/s, 40 deg: some +7 %). Neither are whitecaps, the light
+scattered inside the water nor the sky's reflection modelled: the glint is the specular part of the sea alone,
+meant to be added to a map whose reflectivity holds the diffuse rest (:mod:`simcore.radiometry.analytic`).
 
 All three cosines are enough: with ``c = s . v``, ``s . h = sqrt((1 + c)/2)`` and
 ``n . h = (cos theta_s + cos theta_v) / (2 s . h)``, so :func:`reflected_cos2` is written in them with
-generic ``sqrt/exp/maximum/where`` (``ops``) and serves the numpy backend, the analytic Dr.Jit kernel and
+generic ``sqrt/exp/erf/maximum/where`` (``ops``) and serves the numpy backend, the analytic Dr.Jit kernel and
 the renderer alike.
 """
 from dataclasses import dataclass
@@ -97,7 +105,18 @@ def reflected_cos2(cos_in, cos_out, cos_io, mss, index=WATER_INDEX, ops=NUMPY_OP
     c2 = cos_beta * cos_beta
     tan2 = (1.0 - c2) / c2
     q = fresnel_reflectance(cos_h, index, ops) * ops.exp(-tan2 / mss) / ((4.0 * np.pi * mss) * c2 * c2)
+    q = q / (1.0 + smith_lambda(cos_in, mss, ops) + smith_lambda(cos_out, mss, ops))
     return ops.where((cos_in > 0.0) & (cos_out > 0.0), q, 0.0)
+
+
+def smith_lambda(cos_theta, mss, ops=NUMPY_OPS):
+    """Return Smith's Lambda(theta) >= 0 of Cox & Munk's Gaussian slopes of mean square slope ``mss`` for a direction
+    at ``cos_theta`` from the mean surface's normal (module docstring): 0 toward the zenith, growing as cot(theta)
+    / sigma toward the horizon (where the floor of the cosine keeps it finite: ~3e4 at 7 m/s)."""
+    c = ops.minimum(ops.maximum(cos_theta, 1e-5), 1.0)
+    a = c / ops.sqrt(ops.maximum(mss * (1.0 - c * c), 1e-30))
+    # erfc(a) = 1 - erf(a); both terms vanish for large a (Lambda < 1e-8 beyond a = 4): the clamp takes the rounding
+    return ops.maximum(0.5 * (ops.exp(-a * a) / (a * math.sqrt(math.pi)) - (1.0 - ops.erf(a))), 0.0)
 
 
 def brdf(normal, to_sun, to_observer, mss, index=WATER_INDEX):

@@ -26,6 +26,11 @@ from simcore.shapes.aperture import CircularWell, WellAperture
 from simcore.constants import EQ415_CUTOFF_COS
 
 
+def _erf(x):
+    from scipy.special import erf
+    return erf(x)
+
+
 class _NumpyOps:
     """Array operations used by the response kernels, numpy flavour."""
 
@@ -34,6 +39,7 @@ class _NumpyOps:
     where = staticmethod(np.where)
     sqrt, exp, log, floor = staticmethod(np.sqrt), staticmethod(np.exp), staticmethod(np.log), staticmethod(np.floor)
     asin = staticmethod(np.arcsin)
+    erf = staticmethod(_erf)
     tiny = 1e-300
 
 

@@ -425,7 +425,7 @@ class _DrOps:
 
     def __init__(self, dr):
         self.maximum, self.minimum, self.where = dr.maximum, dr.minimum, dr.select
-        self.sqrt, self.asin, self.exp = dr.sqrt, dr.asin, dr.exp
+        self.sqrt, self.asin, self.exp, self.erf = dr.sqrt, dr.asin, dr.exp, dr.erf
 
 
 def rays_blocked(scene, origins, directions, mi):
