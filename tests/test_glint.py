@@ -229,7 +229,13 @@ R_M = 6371010.0         # simcore.constants.R_EARTH_MEAN_M, the maps' sphere
 E_SUN = 1366.1
 
 
-def _glint_quadrature(sun_unit, mss, index=N_WATER, altitude_m=665e3, n_g=800, n_psi=1440):
+def _air_mass(mu):
+    """Rozenberg (1966, *Twilight*, p. 159): 1 / (cos z + 0.025 exp(-11 cos z))."""
+    mu = np.maximum(mu, 0.0)
+    return 1.0 / (mu + 0.025 * np.exp(-11.0 * mu))
+
+
+def _glint_quadrature(sun_unit, mss, index=N_WATER, altitude_m=665e3, n_g=800, n_psi=1440, tau=gl.GLINT_OPTICAL_DEPTH):
     """Return the glint irradiance (W/m^2) on a bare nadir-facing diode of a satellite over an ocean planet,
     integral of E_sun f(s, v) cos(theta_s) cos(theta_v) cos(theta_d) / d^2 dA over the visible sunlit sphere,
     by Gauss-Legendre in the central angle from the sub-satellite point and the midpoint rule in azimuth; f from
@@ -250,7 +256,8 @@ def _glint_quadrature(sun_unit, mss, index=N_WATER, altitude_m=665e3, n_g=800, n
     cos_b = np.sum(nrm * h, -1)
     p = np.exp(-(1 / cos_b ** 2 - 1) / mss) / (np.pi * mss)
     f_mu_mu = (_fresnel_snell(np.arccos(np.clip(h @ sun_unit, 0, 1)), index) * p / (4 * cos_b ** 4)
-               * _smith_g(np.clip(mu_i, 1e-5, 1), np.clip(mu_o, 1e-5, 1), mss))
+               * _smith_g(np.clip(mu_i, 1e-5, 1), np.clip(mu_o, 1e-5, 1), mss)
+               * np.exp(-tau * (_air_mass(mu_i) + _air_mass(mu_o))))      # seen through the air, both ways
     cos_d = np.maximum(v[..., 0], 0.0)           # diode normal -x; the direction to the cell is -v
     val = np.where((mu_i > 0) & (mu_o > 0), E_SUN * f_mu_mu * cos_d / d ** 2, 0.0) * R_M ** 2 * np.sin(G)
     return float(np.sum(val * w_g[:, None]) * (2 * np.pi / n_psi))
@@ -286,6 +293,21 @@ def test_analytic_glint_fails_with_wrong_wind_or_index():
     q = _glint_quadrature(s, gl.mean_square_slope(7.0))
     assert _analytic_glint(s, 7.0) != pytest.approx(_glint_quadrature(s, 0.003 + 0.0512 * 7), rel=1e-2)
     assert _analytic_glint(s, 7.0, index=1.5) != pytest.approx(q, rel=1e-2)
+    # the glint seen without the atmosphere on its paths (tau = 0): ~20 % brighter at 40 deg
+    assert _analytic_glint(s, 7.0) != pytest.approx(_glint_quadrature(s, gl.mean_square_slope(7.0), tau=0.0), rel=1e-2)
+
+
+def test_air_mass_closed_forms():
+    # Rozenberg's formula: 1 overhead (to 1e-6: 0.025 exp(-11)), 2 at 60 deg, 40 along the horizon (his value)
+    assert gl.air_mass(1.0) == pytest.approx(1.0, abs=1e-6)
+    assert gl.air_mass(0.5) == pytest.approx(1.0 / (0.5 + 0.025 * np.exp(-5.5)), rel=1e-12)
+    assert gl.air_mass(0.5) == pytest.approx(2.0, rel=5e-4)
+    assert gl.air_mass(0.0) == pytest.approx(40.0, rel=1e-12)
+    # the glint at the limb with the Sun just behind it (eclipse entry/exit) is the air's to remove: both paths
+    # ~35 air masses long
+    mss = gl.mean_square_slope(7.0)
+    assert gl.reflected_cos2(0.0103, 0.0032, -0.9999, mss, tau=0.1) < 2e-3 * gl.reflected_cos2(0.0103, 0.0032, -0.9999,
+                                                                                              mss)
 
 
 def _orbit(rng, n=40, altitude_m=668e3):

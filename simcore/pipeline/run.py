@@ -196,7 +196,7 @@ class PreparedRun:
             return None
         f = reflectivity_map.shape[0] // self.map.shape[0]
         sea = self.glint.sea if f == 1 else np.repeat(np.repeat(self.glint.sea, f, axis=0), f, axis=1)
-        return SunGlint(self.glint.wind_m_s, self.glint.index, sea=sea)
+        return SunGlint(self.glint.wind_m_s, self.glint.index, sea=sea, tau=self.glint.tau)
 
     @property
     def sun_angular_radius_rad(self):
@@ -227,7 +227,7 @@ class PreparedRun:
         if self.glint is None:
             return {}
         sea = self.glint.sea if self.map.south_first else self.glint.sea[::-1]
-        return {"glint": SunGlint(self.glint.wind_m_s, self.glint.index, sea=sea)}
+        return {"glint": SunGlint(self.glint.wind_m_s, self.glint.index, sea=sea, tau=self.glint.tau)}
 
     def earth_sun_dir_body(self, sl):
         """Return (n, 3) the unit Earth-centre -> Sun vector in body axes (what lights the Earth, as in the

@@ -260,14 +260,14 @@ def cell_runs(r_sat_m, sun_unit, refl):
 
 
 def _glint_terms(glint, refl):
-    """Return (sigma^2, water index, pi x sea area of each cell (n_lat, n_lon) m^2) of ``glint`` (a
+    """Return (sigma^2, water index, optical depth, pi x sea area of each cell (n_lat, n_lon) m^2) of ``glint`` (a
     :class:`~simcore.radiometry.glint.SunGlint`) on map ``refl``: the albedo sums' glint terms.
 
     The map's reflectivity is read as the diffuse (Lambertian) part of each cell and the glint is added on its
     sea fraction: a cell's weight ``rho A mu_i mu_o / d^2`` (times E_sun / pi) gains
     ``pi s A f(s, v) mu_i mu_o / d^2`` (times the same E_sun / pi), s the sea fraction; f at the cell's centre."""
     sea = glint.sea_fraction(refl)
-    return glint.mss, glint.index, np.pi * sea * refl.row_area_m2[:, None]
+    return glint.mss, glint.index, glint.tau, np.pi * sea * refl.row_area_m2[:, None]
 
 
 # ---- the albedo sums ---------------------------------------------------------------------
@@ -276,7 +276,7 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy; with ``visibility`` (a
     :class:`DirectionVisibility`) also the same sum with its half-fine share, the sum of the well's
     response over its marked cells alone and the sum with the body box alone deciding everywhere (else
-    None, None, None). ``glint``: None, or (sigma^2, water index, pi x sea area of each cell (n_lat, n_lon) m^2)
+    None, None, None). ``glint``: None, or (sigma^2, water index, optical depth, pi x sea area of each cell (n_lat, n_lon) m^2)
     (:func:`_glint_terms`): each cell's weight gains its sea's glint."""
     n_ep, K = r_sat.shape[0], frames.shape[0]
     out = np.zeros((n_ep, K))
@@ -299,9 +299,9 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
     cos_in = np.einsum("ij,ij->i", sun_unit[ep], n)
     w = refl.weights_m2[row, col] * np.maximum(cos_in, 0.0) * np.maximum(cos_out, 0.0) * inv_d ** 2
     if glint is not None:
-        mss, index, sea = glint
+        mss, index, tau, sea = glint
         cos_io = np.einsum("ij,ij->i", sun_unit[ep], v) * inv_d
-        w = w + sea[row, col] * _glint.reflected_cos2(cos_in, cos_out, cos_io, mss, index) * inv_d ** 2
+        w = w + sea[row, col] * _glint.reflected_cos2(cos_in, cos_out, cos_io, mss, index, tau=tau) * inv_d ** 2
     e_body = np.einsum("nij,nj->ni", R_body_from_ecef[ep], -v * inv_d[:, None])
     comp = None if visibility is None else visibility.compact
     for k in range(K):
@@ -377,7 +377,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     cos_lon, sin_lon = table(np.cos(lon)), table(np.sin(lon))
     weights = table(refl.weights_m2)
     if glint is not None:
-        g_mss, g_index, g_sea = float(glint[0]), float(glint[1]), table(glint[2])
+        g_mss, g_index, g_tau, g_sea = float(glint[0]), float(glint[1]), float(glint[2]), table(glint[3])
     radius = float(refl.radius_m)
     n_lon = refl.n_lon
     fr = frames.tolist()
@@ -470,7 +470,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         if glint is not None:
             cos_io = (ux * vx + uy * vy + uz * vz) * inv_d
             wt = wt + dr.gather(F, g_sea, base + j) * _glint.reflected_cos2(cos_in, cos_out, cos_io, g_mss, g_index,
-                                                                          ops) * inv_d * inv_d
+                                                                          ops, g_tau) * inv_d * inv_d
         ex, ey, ez = -vx * inv_d, -vy * inv_d, -vz * inv_d
         bx = M[0] * ex + M[1] * ey + M[2] * ez
         by = M[3] * ex + M[4] * ey + M[5] * ez

@@ -56,6 +56,12 @@ from simcore.radiometry.response import NUMPY_OPS
 WATER_INDEX = 1.33             # refractive index of sea water in the visible and near infrared
 MSS_OFFSET = 0.003             # Cox & Munk (1954) clean surface: sigma^2 = 0.003 + 0.00512 W
 MSS_PER_WIND_S_M = 0.00512     # per m/s of wind at 12.5 m
+# Extinction optical depth of a clear atmosphere on the glint's two direct paths (Sun -> sea -> satellite), near
+# 800 nm: Rayleigh 0.021 (Hansen & Travis 1974, Space Sci. Rev. 16, 527, eq. 2.29: 0.008569 lambda^-4 (1 + 0.0113
+# lambda^-2 + 0.00013 lambda^-4), lambda in um) plus maritime aerosol ~0.08 (AOT 0.1 at 550 nm, the 6S settings of
+# simcore/data/band/, Angstrom exponent 0.5). The map's reflectivity is top-of-atmosphere already; the glint is a
+# surface reflection, seen through the air twice.
+GLINT_OPTICAL_DEPTH = 0.1
 # Facet tilts with cos(beta) below this reflect nothing the kernels could resolve (tan^2 beta > 1e6: the slope
 # density is exp(-1e6 / sigma^2) = 0); the floor keeps 1/cos^4 finite in float32.
 _COS_BETA_FLOOR = 1e-3
@@ -95,17 +101,29 @@ def slope_pdf(z_x, z_y, mss):
     return np.exp(-z2 / mss) / (np.pi * mss)
 
 
-def reflected_cos2(cos_in, cos_out, cos_io, mss, index=WATER_INDEX, ops=NUMPY_OPS):
+def air_mass(cos_zenith, ops=NUMPY_OPS):
+    """Return the relative air mass of a path at ``cos_zenith`` from the zenith (1 overhead, 40 along the horizon):
+    Rozenberg's m = 1 / (cos z + 0.025 exp(-11 cos z)) (G. V. Rozenberg 1966, *Twilight*, Plenum, p. 159), the
+    plane-parallel 1 / cos z with the curved atmosphere's finite path toward the horizon."""
+    c = ops.maximum(cos_zenith, 0.0)
+    return 1.0 / (c + 0.025 * ops.exp(-11.0 * c))
+
+
+def reflected_cos2(cos_in, cos_out, cos_io, mss, index=WATER_INDEX, ops=NUMPY_OPS, tau=0.0):
     """Return f(s, v) cos(theta_s) cos(theta_v) (1/sr): the glint BRDF times both zenith cosines, from the cosines
     of the Sun's zenith ``cos_in``, the observer's ``cos_out`` (over the mean surface) and the angle between the
     two directions ``cos_io`` (= s . v); 0 where either lies below the surface. Finite everywhere (the form the
-    albedo sums need: the cosines cancel the BRDF's 1/cos poles)."""
+    albedo sums need: the cosines cancel the BRDF's 1/cos poles). ``tau``: the atmosphere's extinction optical
+    depth on both direct paths (:data:`GLINT_OPTICAL_DEPTH` for the glint at the top of the atmosphere): the
+    value times exp(-tau (m(theta_s) + m(theta_v))), :func:`air_mass`; 0: the surface's BRDF alone."""
     cos_h = ops.sqrt(ops.maximum(0.5 * (1.0 + cos_io), 0.0))
     cos_beta = ops.maximum((cos_in + cos_out) / ops.maximum(2.0 * cos_h, _COS_BETA_FLOOR), _COS_BETA_FLOOR)
     c2 = cos_beta * cos_beta
     tan2 = (1.0 - c2) / c2
     q = fresnel_reflectance(cos_h, index, ops) * ops.exp(-tan2 / mss) / ((4.0 * np.pi * mss) * c2 * c2)
     q = q / (1.0 + smith_lambda(cos_in, mss, ops) + smith_lambda(cos_out, mss, ops))
+    if tau:
+        q = q * ops.exp(-tau * (air_mass(cos_in, ops) + air_mass(cos_out, ops)))
     return ops.where((cos_in > 0.0) & (cos_out > 0.0), q, 0.0)
 
 
@@ -133,16 +151,20 @@ def brdf(normal, to_sun, to_observer, mss, index=WATER_INDEX):
 class SunGlint:
     """The sea's sun glint of a run: wind speed ``wind_m_s`` (m/s at 12.5 m), water index ``index`` and where the sea
     is: ``sea`` None for GSHHG's (:func:`simcore.environment.water.ocean_fraction` of the map), or the sea fraction
-    of each cell (n_lat, n_lon) in [0, 1] on the map's grid and row order (e.g. 1 everywhere: an ocean planet)."""
+    of each cell (n_lat, n_lon) in [0, 1] on the map's grid and row order (e.g. 1 everywhere: an ocean planet);
+    ``tau`` the atmosphere's optical depth on the glint's paths (:func:`reflected_cos2`)."""
 
     wind_m_s: float
     index: float = WATER_INDEX
     sea: object = None
+    tau: float = GLINT_OPTICAL_DEPTH
 
     def __post_init__(self):
         object.__setattr__(self, "wind_m_s", check_wind(self.wind_m_s))
         if not (math.isfinite(self.index) and self.index > 1.0):
             raise ValueError(f"the water's refractive index must be a finite number > 1, got {self.index}")
+        if not (math.isfinite(self.tau) and self.tau >= 0.0):
+            raise ValueError(f"the atmosphere's optical depth must be a finite number >= 0, got {self.tau}")
         if self.sea is not None:
             sea = np.array(self.sea, dtype=float)
             if sea.ndim != 2 or not np.all((sea >= 0) & (sea <= 1)):
@@ -166,8 +188,9 @@ class SunGlint:
 
     def attrs(self):
         """Return the run file's attributes that say which glint it rendered."""
-        return {"glint_model": "Cox-Munk 1954 isotropic slopes, unpolarised Fresnel, no shadowing; added to the map's "
-                               "diffuse reflectivity on each cell's sea fraction (GSHHG; none under the overcast "
-                               "cells of cloud weather)",
+        return {"glint_model": "Cox-Munk 1954 isotropic slopes, unpolarised Fresnel, Smith shadowing and masking, "
+                               "two-way direct transmittance of the atmosphere; added to the map's diffuse "
+                               "reflectivity on each cell's sea fraction (GSHHG; none under the overcast cells of "
+                               "cloud weather)",
                 "glint_wind_m_s": self.wind_m_s, "glint_water_index": self.index,
-                "glint_mean_square_slope": self.mss}
+                "glint_mean_square_slope": self.mss, "glint_optical_depth": self.tau}

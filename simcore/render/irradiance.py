@@ -757,7 +757,7 @@ class Renderer:
         return (self.variant, self.sun_angular_radius_rad, self.control_variate, self.earth_radius_m,
                 self.lon_west_rad, self.reflectivity.shape, self._win is None,
                 bool(self.control_variate and self._plain.any()),
-                None if self._glint is None else (self._glint.mss, self._glint.index))
+                None if self._glint is None else (self._glint.mss, self._glint.index, self._glint.tau))
 
     def _col(self, a, name, i=0):
         """Return column ``i`` of field ``name`` of the lanes' tasks (:class:`_Lanes`): mi.Float, or mi.UInt32 for
@@ -1377,7 +1377,7 @@ class Renderer:
         if sea is not None:
             g = self._glint
             cos_view = -dr.dot(xe, d) * (1.0 / R)
-            q = _glint.reflected_cos2(cos_sun, cos_view, -dr.dot(s, d), g.mss, g.index, _DrOps(dr))
+            q = _glint.reflected_cos2(cos_sun, cos_view, -dr.dot(s, d), g.mss, g.index, _DrOps(dr), g.tau)
             # f = q / (cos_sun cos_view); the floor only where q is 0 or the lane is dropped (cos_sun <= 0)
             f = q / dr.maximum(cos_sun * cos_view, 1e-12)
             rho = rho + np.pi * dr.gather(mi.Float, sea, cell) * f
