@@ -31,7 +31,9 @@ slopes are Beckmann's distribution with alpha^2 = sigma^2, B. Walter et al. 2007
 multiplies f. It is 1 to ~1e-17 for the Sun at 40 deg and 7 m/s (a = 6) and goes to 0 toward either horizon:
 without it f cos(theta_s) cos(theta_v) stays finite there, and a sea at the terminator seen at the limb with
 the Sun just behind it (the satellite at eclipse entry or exit) would glint as brightly as at noon, in a sliver
-of cells no sampling could find. No multiple reflections. The albedo of this surface,
+of cells no sampling could find. Seen from space, the glint has also crossed the atmosphere twice: the runs take
+its direct transmittance on both paths (:func:`air_mass`, :data:`GLINT_OPTICAL_DEPTH`, ``SunGlint.tau``), which
+removes the rest of that sliver (both paths ~35 air masses long). No multiple reflections. The albedo of this surface,
 ``integral f cos(theta_v) d omega_v``, is then the mean over the facets the observer is not masked from of their
 Fresnel share weighted by their area seen from the Sun (``tests/test_glint.py`` checks that identity in slope
 space). It equals the flat sea's Fresnel reflectance ``rho(cos theta_s)`` to 1 % only on a calm sea: at W = 0
