@@ -195,10 +195,11 @@ def test_hemispherical_reflectance_fails_with_wrong_inputs():
 
 
 def test_hemispherical_reflectance_at_7_m_s_twenty_degrees():
-    # the criterion at the wind the CLI examples use: holds at 20 deg (+1.4 %), not at 40 (+7.0 %) or 60 (+4.4 %),
-    # where the facet average of the next test is the right value
-    assert _hemispherical(20.0, gl.mean_square_slope(7.0)) == pytest.approx(float(_fresnel_snell(np.radians(20))),
-                                                                             rel=0.02)
+    # the criterion at the wind the CLI examples use: holds at 20 deg (+1.4 %) and 60 (+0.7 %: the waves' masking
+    # takes back what the tilted facets add), not at 40 (+6.8 %), where the facet average of the next test is right
+    for zen in (20.0, 60.0):
+        assert _hemispherical(zen, gl.mean_square_slope(7.0)) == pytest.approx(float(_fresnel_snell(np.radians(zen))),
+                                                                                rel=0.02)
 
 
 @pytest.mark.parametrize("wind", [2.0, 7.0, 14.0])
