@@ -10,7 +10,7 @@ import numpy as np
 from simcore.constants import R_EARTH_MEAN_M
 from simcore.environment.maps import ReflectivityMap
 from simcore.pipeline.check import Z_QUARTILE, normal_scores
-from simcore.pipeline.run import PreparedRun, RunOptions, _refined
+from simcore.pipeline.run import PreparedRun, RunOptions
 from simcore.render.irradiance import _N_P, _N_T, corner_reach, reach_level, reach_levels
 
 
@@ -84,7 +84,7 @@ def test_bright_cells_between_bin_corners_keep_z_standard_normal():
     study.map = ReflectivityMap.from_array(v, centres(m0.lat_edges_deg), centres(m0.lon_edges_deg), name="bright cells")
     study._renderer = None
     g, sl = study.geometry, slice(0, len(study.epochs))
-    ref = study.analytic(sl, _refined(study.map, 6), direct=False).albedo_w_m2
+    ref = study.analytic(sl, study.map.refined(6), direct=False).albedo_w_m2
     z = []
     for seed in range(8):
         res = study.renderer.render(g.sun_dir_body, g.earth_center_body_m, g.R_ecef_from_body, study.sun_scale(sl),

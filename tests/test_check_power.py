@@ -146,7 +146,6 @@ def test_stratum_pairs_are_independent_so_the_pooled_spread_is_one():
     # diodes x 2 seeds, 1024 albedo samples. sqrt(sum d^2 / sum se^2) has sampling error ~sqrt(1 / (2 n)) ~ 0.0095
     # for n ~ 5500 normal z; 0.04 is 4.2 of those.
     from simcore.environment.maps import ReflectivityMap
-    from simcore.pipeline.run import _refined
     study = PreparedRun(RunOptions(config="tilt0_fov90", start=START, duration_s=SPAN_S, step_s=1.0))
     m0 = study.map
     centres = lambda e: 0.5 * (np.asarray(e)[1:] + np.asarray(e)[:-1])  # noqa: E731
@@ -154,7 +153,7 @@ def test_stratum_pairs_are_independent_so_the_pooled_spread_is_one():
                                            centres(m0.lon_edges_deg), name="uniform 0.3")
     study._renderer = None
     g, sl = study.geometry, slice(0, len(study.epochs))
-    ref = study.analytic(sl, _refined(study.map, 6), direct=False).albedo_w_m2
+    ref = study.analytic(sl, study.map.refined(6), direct=False).albedo_w_m2
     d, se = [], []
     for seed in (0, 1):
         res = study.renderer.render(g.sun_dir_body, g.earth_center_body_m, g.R_ecef_from_body, study.sun_scale(sl),

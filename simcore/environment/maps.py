@@ -144,6 +144,15 @@ class ReflectivityMap:
             raise ValueError(f"CERES 2018 maps come as kind='all' (all-sky) or kind='clear' (clear-sky), got {kind!r}")
         return _ceres2018(kind)
 
+    def refined(self, factor):
+        """Return this Earth on a grid ``factor`` times finer each way: every cell split into ``factor`` x ``factor``
+        sub-cells of its own value (the cell sums' quadrature at a finer step, the same reflectivity)."""
+        v = np.repeat(np.repeat(self.values, factor, axis=0), factor, axis=1)
+        lat = np.linspace(self.lat_edges_deg[0], self.lat_edges_deg[-1], v.shape[0] + 1)
+        lon = np.linspace(self.lon_edges_deg[0], self.lon_edges_deg[-1], v.shape[1] + 1)
+        return ReflectivityMap.from_array(v, 0.5 * (lat[1:] + lat[:-1]), 0.5 * (lon[1:] + lon[:-1]),
+                                          name=f"{self.name} refined {factor}x{factor}", radius_m=self.radius_m)
+
     # ---- grid ------------------------------------------------------------
     @property
     def shape(self):

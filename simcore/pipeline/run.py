@@ -26,7 +26,6 @@ import xarray as xr
 
 from scenes.config import SatelliteConfig, body_side_normal
 from scenes.meshes import build_parts, build_satellite_mesh
-from simcore.environment.maps import ReflectivityMap
 from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
 from simcore.radiometry.glint import SunGlint
@@ -116,14 +115,6 @@ class RunOptions:
         return d
 
 
-def _refined(m, factor):
-    v = np.repeat(np.repeat(m.values, factor, axis=0), factor, axis=1)
-    lat = np.linspace(m.lat_edges_deg[0], m.lat_edges_deg[-1], v.shape[0] + 1)
-    lon = np.linspace(m.lon_edges_deg[0], m.lon_edges_deg[-1], v.shape[1] + 1)
-    return ReflectivityMap.from_array(v, 0.5 * (lat[1:] + lat[:-1]), 0.5 * (lon[1:] + lon[:-1]),
-                                      name=f"{m.name} refined {factor}x{factor}")
-
-
 def study_geometry(opts):
     """Return (orbit, attitude, geometry) of the orbit, time span and attitude that ``opts`` describe.
 
@@ -170,7 +161,7 @@ class PreparedRun:
         else:
             self.clouds = band.cloud_weather(opts.reflectivity, opts.cloud_scale_km)
             self.map = self.clouds.realise(opts.clouds)
-        self.map_refined = _refined(self.map, CHECK_REFINE)
+        self.map_refined = self.map.refined(CHECK_REFINE)
         self.glint = self._sea_glint()
         self._renderer = None
 

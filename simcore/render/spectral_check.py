@@ -305,27 +305,21 @@ def default_geometry(n_epochs=6, start=DEFAULT_START, step_s=DEFAULT_STEP_S):
     return g.r_sat_ecef_m[:n_epochs], g.r_sun_ecef_m[:n_epochs]
 
 
-def _refined(values, factor):
-    from simcore.environment.maps import ReflectivityMap
-    v = np.repeat(np.repeat(values, factor, axis=0), factor, axis=1)
-    lat = np.linspace(-90.0, 90.0, v.shape[0] + 1)
-    lon = np.linspace(-180.0, 180.0, v.shape[1] + 1)
-    return ReflectivityMap.from_array(v, 0.5 * (lat[1:] + lat[:-1]), 0.5 * (lon[1:] + lon[:-1]))
-
-
 def band_map_reference(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_local, normals_local, band_values, e_band_w_m2):
     """Return (albedo (N, K) W/m^2, its discretisation bound (N, K)): the analytic model with bare (cosine)
     diodes on the band map ``band_values`` (180 x 360 south-first), solar constant ``e_band_w_m2``, cells
     refined :data:`REFINE` x :data:`REFINE`; the bound is |native - refined| / (REFINE^2 - 1) (second order,
     as :func:`simcore.pipeline.check.discretisation_bound`)."""
+    from simcore.environment.maps import ReflectivityMap
     from simcore.radiometry.analytic import diode_irradiance
     from simcore.radiometry.response import CosineResponse
     from simcore.shapes.aperture import diode_frame
+    band_map = ReflectivityMap.from_array(band_values)
     frames = np.stack([diode_frame(np.asarray(n, float)) for n in normals_local])
     out = []
     for f in (1, REFINE):
         res = diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_local, frames, CosineResponse(),
-                               map=_refined(band_values, f), e_sun_w_m2=e_band_w_m2, eclipse=None, direct=False,
+                               map=band_map.refined(f), e_sun_w_m2=e_band_w_m2, eclipse=None, direct=False,
                                precision="double")
         out.append(res.albedo_w_m2)
     return out[1], np.abs(out[0] - out[1]) / (REFINE ** 2 - 1.0)
