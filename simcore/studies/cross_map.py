@@ -108,6 +108,7 @@ def evaluate_cross_map(config="tilt20_fov70", *, start_s=18000, stop_s=28000, da
               "estimates": {}}
     for t_name, e_total in truth.items():
         e_p = chain.measure(e_total)
+        from_readings = {}                  # the estimators that need no prediction: once per truth
         for p_name in onboard_maps:
             if p_name == t_name and not same_map:
                 continue
@@ -115,7 +116,12 @@ def evaluate_cross_map(config="tilt20_fov70", *, start_s=18000, stop_s=28000, da
                 preds[p_name] = predict_albedo_effective(geometry, R_est, cfg, p_name, e_s0_w_m2=e_s0,
                                                          backend=backend)
             for est_name, f in ests.items():
-                s_hat, valid = f(e_p, preds[p_name])
+                if est_name in _FROM_READINGS:
+                    if est_name not in from_readings:
+                        from_readings[est_name] = f(e_p, None)
+                    s_hat, valid = from_readings[est_name]
+                else:
+                    s_hat, valid = f(e_p, preds[p_name])
                 err = angle_error_deg(s_hat, s_true)
                 errors[(t_name, p_name, est_name)] = err
                 errors["estimates"][(t_name, p_name, est_name)] = np.where(valid[:, None], s_hat, np.nan)
