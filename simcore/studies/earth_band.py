@@ -69,7 +69,7 @@ def check_inputs(span, wind_m_s, cloud_seeds):
     if len(set(seeds)) != len(seeds):
         raise InvalidInputError(f"--cloud-seeds repeats a seed ({' '.join(map(str, seeds))}); give each once")
     for s in seeds:
-        check_cloud_options(TRUTH_MAP, s)
+        check_cloud_options(TRUTH_MAP, s, seed_option="--cloud-seeds")
 
 
 def truth_keys(cloud_seeds):
