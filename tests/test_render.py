@@ -83,10 +83,9 @@ def test_unknown_variant_is_rejected():
 
 
 def test_missing_libllvm_raises_llvm_not_found_in_a_subprocess():
-    # requested explicitly, and chosen automatically on a machine without a GPU
-    for request in ("'llvm_ad_mono'", "None"):
-        if request == "None" and _cuda_present():
-            continue
+    # requested explicitly, and chosen automatically; on a GPU machine the CUDA variant too, as the analytic
+    # model runs on Dr.Jit's CPU backend whichever variant renders (without it: SIGFPE on an H100)
+    for request in ("'llvm_ad_mono'", "None") + (("'cuda_ad_mono'",) if _cuda_present() else ()):
         code = (
             "import simcore\n"
             "from simcore._llvm import LLVMNotFoundError\n"

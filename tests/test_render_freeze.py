@@ -4,6 +4,11 @@ The oracle is Dr.Jit's ordinary path: the same kernels traced anew at every laun
 ``JitFlag.KernelFreezing``). A replay runs the recorded kernels on new inputs of other sizes (other epochs, task
 counts, sample counts), so the two agree bit for bit only if every input the values depend on reaches the
 recording as an input and the launch sizes follow the inputs, which is what this checks.
+
+Only the variants in ``_FREEZE_VARIANTS`` record: llvm_ad_mono, which these tests pin, so that a GPU machine checks
+it too. cuda_ad_mono traces every launch: on an H100 (2026-11-25) its replay, switched on for the purpose, passed
+these tests bit for bit, but rendered no faster (bench_render 0.448 against 0.461 ms per epoch: the GPU path's time
+is the host's, 0.46 ms of CPU per epoch), so it stays off.
 """
 
 import numpy as np
@@ -13,6 +18,8 @@ from scenes.config import SatelliteConfig
 from scenes.meshes import build_satellite_mesh
 from simcore._llvm import import_drjit
 from simcore.render.irradiance import SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer
+
+VARIANT = "llvm_ad_mono"       # the variant that records and replays
 
 _ARRAYS = ("direct_w_m2", "direct_se_w_m2", "direct_samples", "direct_dof",
            "albedo_w_m2", "albedo_se_w_m2", "albedo_samples", "albedo_dof")
@@ -36,7 +43,7 @@ def _render(cfg, frozen, sun, earth, rot, **kw):
     flag = dr.flag(dr.JitFlag.KernelFreezing)
     dr.set_flag(dr.JitFlag.KernelFreezing, frozen)
     try:
-        rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg),
+        rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), variant=VARIANT,
                         sun_angular_radius_rad=kw.pop("sun_angular_radius_rad", 0.0), glint=kw.pop("glint", None))
         res = rend.render(sun, earth, rot, **kw)
     finally:
@@ -93,7 +100,7 @@ def test_a_renderer_with_other_settings_records_its_own_kernels():
     cfg = SatelliteConfig.load("tilt20_fov70")
     sun, earth, rot = _epochs(16, seed=11)
     kw = dict(seed=4, batch_epochs=8, direct_samples=256, albedo_samples=64)
-    rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg))
+    rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), variant=VARIANT)
     rend.render(sun, earth, rot, **kw)
     rend.sun_angular_radius_rad = SUN_ANGULAR_RADIUS_RAD
     got = rend.render(sun, earth, rot, **kw)
@@ -116,7 +123,7 @@ def test_one_renderer_through_the_calls_of_a_run_gives_the_traced_values():
     try:
         for frozen in (True, False):
             dr.set_flag(dr.JitFlag.KernelFreezing, frozen)
-            rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg),
+            rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), variant=VARIANT,
                             sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD)
             out = []
             for start in (0, 12):
@@ -155,9 +162,26 @@ def test_a_kernel_whose_lanes_are_all_constant_follows_the_launch_size():
     ds = DiodeSurfaces(np.zeros((1, 3)), diode_frame(np.array([0.0, 0.0, 1.0]))[None], [0.01, 0.01])
     th = np.radians(np.arange(0, 90))
     sun = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)
-    rend = Renderer(ds)
+    rend = Renderer(ds, variant=VARIANT)
     got = rend.render(sun, batch_epochs=64)                    # batches of 64 and 26 epochs
     assert rend._frozen["_direct_kernel"].n_recordings == 1
+    np.testing.assert_allclose(got.direct_w_m2[:, 0], E_SUN_W_M2 * np.cos(th), rtol=1e-6, atol=0)
+
+
+def test_a_constant_kernel_traced_at_every_launch_still_has_its_lanes(monkeypatch):
+    # A variant that traces every launch (not in _FREEZE_VARIANTS; cuda_ad_mono) anchors the result on the lanes'
+    # counter too: unanchored, the folded constant came back as one value for a launch's 1024 lanes (IndexError in
+    # _task_mean_var, seen on an H100). Here the CPU variant is made to trace every launch. Oracle as above.
+    from simcore.constants import E_SUN_W_M2
+    from simcore.render import irradiance
+    from simcore.shapes.aperture import diode_frame
+    monkeypatch.setattr(irradiance, "_FREEZE_VARIANTS", ())
+    ds = DiodeSurfaces(np.zeros((1, 3)), diode_frame(np.array([0.0, 0.0, 1.0]))[None], [0.01, 0.01])
+    th = np.radians(np.arange(0, 90))
+    sun = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)
+    rend = Renderer(ds, variant=VARIANT)
+    got = rend.render(sun, batch_epochs=64)
+    assert rend._frozen == {}
     np.testing.assert_allclose(got.direct_w_m2[:, 0], E_SUN_W_M2 * np.cos(th), rtol=1e-6, atol=0)
 
 
@@ -172,7 +196,7 @@ def test_a_dropped_renderer_is_freed_at_once():
     enabled = gc.isenabled()
     gc.disable()
     try:
-        rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg))
+        rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), variant=VARIANT)
         rend.render(sun, earth, rot, direct_samples=64, albedo_samples=16)
         assert len(rend._frozen) == 3
         ref = weakref.ref(rend)

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from simcore import _llvm
 from simcore.errors import InvalidInputError
 
 MAX_SEED = 2 ** 64 - 1            # the renderer hashes the seed as an unsigned 64-bit integer
@@ -119,8 +120,8 @@ def check_variant(variant):
         raise InvalidInputError(f"--variant {variant} is unknown; use one of {', '.join(render._VARIANTS)}")
     try:
         return render.choose_variant(variant)
-    except RuntimeError:
-        if variant == "cuda_ad_mono":
+    except RuntimeError as exc:
+        if variant == "cuda_ad_mono" and not isinstance(exc, _llvm.LLVMNotFoundError):
             raise InvalidInputError("--variant cuda_ad_mono needs a working CUDA GPU and none was found here; "
                                     "use --variant llvm_ad_mono or leave --variant out") from None
         raise

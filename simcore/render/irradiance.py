@@ -165,10 +165,19 @@ _EDGE_BOOST = 16
 # differently with other rays beside it (seen: 1 lane of 28 224 flipped with the epochs batched together, moving its
 # diode-epoch by 0.02 %); a task's values then depended on the batch, and a run resumed with another --chunk on them.
 _PACKET = 16
+# Variants whose direct, albedo and proposal kernels are recorded once and replayed (Renderer._run).
+_FREEZE_VARIANTS = ("llvm_ad_mono",)
 _WINDOW_KEY = 0x5BD1E995   # xor-ed into a lane's key: the window's own random numbers (the kernels' stay as they were)
 
 
 # --------------------------------------------------------------------------- variants
+
+def _anchored(dr, lanes, values):
+    """Return a kernel's per-lane ``values`` passed through a select on the lanes' counter (always true: a launch
+    holds < 2^32 - 1 lanes; the values are unchanged), so that a result the tracer folds to a constant still has
+    one value per lane of the launch (Renderer._run)."""
+    return dr.select(lanes.lane != 0xFFFFFFFF, values, 0.0)
+
 
 def _cuda_works():
     """Return True when Dr.Jit can use a CUDA device in this process."""
@@ -185,30 +194,31 @@ def choose_variant(requested=None):
 
     Raises ``ValueError`` for an unknown variant, ``RuntimeError`` when a CUDA
     variant is requested without a working GPU, and
-    ``simcore._llvm.LLVMNotFoundError`` (with the install hint) when the CPU
-    variant is needed and no usable libLLVM exists.
+    ``simcore._llvm.LLVMNotFoundError`` (with the install hint) when no usable
+    libLLVM exists: Dr.Jit's CPU backend is needed with either variant.
     """
     if requested is not None and requested not in _VARIANTS:
         raise ValueError(f"unknown render variant {requested!r}; use one of {_VARIANTS} "
                          "or None to pick the GPU when there is one")
-    if requested == "cuda_ad_mono":
+    variant = "llvm_ad_mono"
+    if requested in (None, "cuda_ad_mono"):
         _llvm.import_mitsuba()  # loads drjit's backends
-        if not _cuda_works():
+        if _cuda_works():
+            variant = "cuda_ad_mono"
+        elif requested is not None:
             raise RuntimeError("variant 'cuda_ad_mono' was requested but no working CUDA GPU was found "
                                "(Dr.Jit reports no CUDA backend); use variant='llvm_ad_mono' or None "
                                "to render on the CPU")
-        return requested
-    if requested is None:
-        _llvm.import_mitsuba()
-        if _cuda_works():
-            return "cuda_ad_mono"
-    # The CPU variant: make sure a usable libLLVM is there before Dr.Jit touches it.
+    # Dr.Jit's CPU backend, whichever variant renders: the analytic model's and the body shadow's float64 kernels
+    # (simcore.radiometry.analytic, simcore.shapes.occlusion) run on it on a GPU machine too. Without it the first
+    # of them dies (SIGFPE, seen on an H100 with no libLLVM) instead of saying what is missing.
     _llvm.find_libllvm()
     dr = _llvm.import_drjit()
     if not dr.has_backend(dr.JitBackend.LLVM):
         raise _llvm.LLVMNotFoundError(
-            f"Dr.Jit could not load the libLLVM at {os.environ.get(_llvm.ENV)!r}. " + _llvm.INSTALL_HINT)
-    return "llvm_ad_mono"
+            f"Dr.Jit could not load the libLLVM at {os.environ.get(_llvm.ENV)!r} (its CPU backend runs the analytic "
+            "model whichever variant renders). " + _llvm.INSTALL_HINT)
+    return variant
 
 
 # --------------------------------------------------------------------------- inputs
@@ -725,11 +735,16 @@ class Renderer:
         code are ``_kernel_state`` (also part of the key). The launch size follows the lanes' counter
         (``lanes.lane``: the only array the kernels read lane by lane; all else is gathered), and no kernel reads a
         size or an element into Python. The reflected kernel is not frozen: its wavefront compacts the live paths
-        (``drjit.compress``), whose count depends on the data, and would record anew at every call. The CUDA
-        variant traces every launch as before: its frozen replay (OptiX scenes as recording inputs) has not been
-        checked against tracing here (no GPU), so it is not trusted with the results."""
-        if kernel.__name__ == "_reflected_kernel" or self.variant != "llvm_ad_mono":
+        (``drjit.compress``), whose count depends on the data, and would record anew at every call. Variants not in
+        ``_FREEZE_VARIANTS`` trace every launch.
+
+        Either way the result passes through :func:`_anchored`: where the tracer folds a kernel's result to a
+        constant (a bare diode and no mesh: every lane reads 1), it would otherwise come back as one value instead
+        of the launch's lanes (seen on cuda_ad_mono, which traced every launch unanchored)."""
+        if kernel.__name__ == "_reflected_kernel":
             return kernel(lanes, *args)
+        if self.variant not in _FREEZE_VARIANTS:
+            return _anchored(self._dr, lanes, kernel(lanes, *args))
         frozen = self._frozen.get(kernel.__name__)
         if frozen is None:
             dr = self._dr
@@ -739,11 +754,9 @@ class Renderer:
             kernel_ref, state_ref = weakref.WeakMethod(kernel), weakref.WeakMethod(self._kernel_state)
 
             def anchored(lanes, *args):
-                # The result passed through a select on the lanes' counter (always true: a launch holds < 2^32 - 1
-                # lanes; the values are unchanged). Where the tracer folds a kernel's result to a constant (a bare
-                # diode and no mesh: every lane reads 1), there is no kernel to replay and the recording would
-                # hand back a constant of the recorded launch's size; this keeps a kernel whose size is the lanes'.
-                return dr.select(lanes.lane != 0xFFFFFFFF, kernel_ref()(lanes, *args), 0.0)
+                # a recording of a kernel folded to a constant would hand back a constant of the recorded launch's
+                # size: anchored, it is a kernel whose size is the lanes'
+                return _anchored(dr, lanes, kernel_ref()(lanes, *args))
             frozen = self._frozen[kernel.__name__] = dr.freeze(
                 anchored, state_fn=lambda *a, **k: state_ref()(*a, **k))
         # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
