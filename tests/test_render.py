@@ -504,17 +504,40 @@ def test_sun_scale_scales_both_parts_and_progress_is_reported():
     assert (a.albedo_w_m2 > 0).any() and (a.direct_w_m2 > 0).any()
 
 
-def test_target_accuracy_is_met_or_the_cap_is_reached():
+def _target_variance_ratio(rend, sun, earth, rot, seed, floor=0.01):
+    """Return the render and, for its albedo tasks that the rule sized (more samples than one round, fewer than the
+    cap), (standard error / target)^2. (The direct part goes through the same rule, but in this scene its estimate
+    has no variance: the analytic well is the mesh's.)"""
+    res = rend.render(sun, earth, rot, seed=seed, rel_se_direct=0.002, rel_se_albedo=0.01,
+                      abs_se_floor_w_m2=floor, max_direct_samples=1 << 17, max_albedo_samples=1 << 16)
+    sized = (res.albedo_samples > 256 + 64) & (res.albedo_samples < (1 << 16) - 64)
+    return res, (res.albedo_se_w_m2[sized] / np.maximum(0.01 * res.albedo_w_m2[sized], floor)) ** 2
+
+
+@pytest.mark.parametrize("wrong", [False, True])
+def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch, wrong):
+    # The adaptive rule (Renderer._rounds): a pilot round's standard error sizes a fresh final round to 1.2 x the
+    # samples the target needs, with the error falling as n^(-1/2). Its promise is the target in expectation, not
+    # on every task: the final se is an estimate from a round sized by another estimate, so se^2 / target^2 of a
+    # task follows F(nu_final, nu_pilot) / 1.2, which exceeds 1 on a few tasks (64 epochs here: 7 % of them, up to
+    # 1.64). The oracle is that promise, pooled over the ~52 sized tasks: mean (se / target)^2 <= 1 (0.36-0.49
+    # over seeds 1-12, sd 0.035, with the rule's rounding up: a false alarm needs a > 15 sigma excursion).
+    # Deliberately wrong input: the rule told the error falls as n^(-1) (power 1): the mean reads ~1.6 and fails.
+    # (Was: every task's se <= its target, which held for seed 3 by luck, at 0.999 on one task; cuda_ad_mono's
+    # other float rounding put that task at > 1 on an H100.)
+    from simcore.render import irradiance
+    if wrong:
+        shortfall = irradiance._shortfall
+        monkeypatch.setattr(irradiance, "_shortfall",
+                            lambda m, se, n, rel, floor, power: shortfall(m, se, n, rel, floor, 1))
     ds, mesh = _scene_for_determinism()
     rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3))
-    sun, earth, rot = _orbitish_inputs(16, 2)
-    floor = 0.01
-    res = rend.render(sun, earth, rot, seed=3, rel_se_direct=0.002, rel_se_albedo=0.01,
-                      abs_se_floor_w_m2=floor, max_direct_samples=1 << 17, max_albedo_samples=1 << 16)
-    # met, or a further round (>= 64 samples) would not fit under the cap
-    ok_d = (res.direct_se_w_m2 <= np.maximum(0.002 * res.direct_w_m2, floor)) | (res.direct_samples > (1 << 17) - 64)
-    ok_a = (res.albedo_se_w_m2 <= np.maximum(0.01 * res.albedo_w_m2, floor)) | (res.albedo_samples > (1 << 16) - 64)
-    assert ok_d.all() and ok_a.all()
+    sun, earth, rot = _orbitish_inputs(64, 2)
+    res, q = _target_variance_ratio(rend, sun, earth, rot, seed=3)
+    assert len(q) >= 20
+    assert (q.mean() > 1) == wrong, q.mean()
+    if wrong:
+        return
     assert (res.albedo_samples > 256).any()                # some diode-epochs needed more rounds
     # with raw counts only, exactly one round is traced (split 4:1 with the aperture hint,
     # each part rounded up to its stratification); direct tasks that a shadow edge of the mesh crosses
