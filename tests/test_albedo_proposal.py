@@ -124,4 +124,5 @@ def test_glint_between_overcast_corners_keeps_the_run_check_passing(tmp_path, mo
         check = json.loads(ds.attrs["check"])
     tails = [t for t in check["tests"] if t["component"] == "albedo" and t["test"] == "tails"][0]
     assert check["pass"] == (share is None), tails
-    assert (tails["statistic"] == 0) == (share is None), tails
+    # the wrong input fails on the tails test itself (the check's own threshold, not a count chosen here)
+    assert tails["passed"] == (share is None), tails
