@@ -25,10 +25,15 @@ def _output_folder(folder, option):
     return folder
 
 
-def _add_orbit_options(p):
+def _add_orbit_options(p, ephemeris=False):
     p.add_argument("--tle", metavar="FILE", help=DEFAULT_TLE_HELP)
     p.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
-    p.add_argument("--start", default="2016-07-02T00:00:00Z", help="first epoch, ISO-8601 UTC (default: %(default)s)")
+    if ephemeris:
+        p.add_argument("--orbit", metavar="FILE.oem", help="a CCSDS orbit ephemeris (OEM, KVN or XML) instead of a "
+                       "TLE; without --start/--duration the run covers its span (docs/ccsds.md)")
+    p.add_argument("--start", default=None if ephemeris else "2016-07-02T00:00:00Z",
+                   help="first epoch, ISO-8601 UTC (default: 2016-07-02T00:00:00Z"
+                        + (", with --orbit the ephemeris's first epoch)" if ephemeris else ")"))
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="seconds to simulate (default: one orbital period)")
     p.add_argument("--step", type=float, default=1.0, metavar="S", help="seconds between epochs (default: %(default)s)")
@@ -153,7 +158,8 @@ def run_options(args):
     from simcore.pipeline.run import RunOptions
     samples = args.samples
     return RunOptions(
-        config=args.config, tle=args.tle, satellite=args.satellite, start=args.start, duration_s=args.duration,
+        config=args.config, tle=args.tle, satellite=args.satellite, orbit_file=args.orbit,
+        start=args.start if args.start is not None or args.orbit else "2016-07-02T00:00:00Z", duration_s=args.duration,
         step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude, dynamics=args.dynamics,
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
@@ -737,7 +743,7 @@ def build_parser():
 
     r = sub.add_parser("run", help="the main job: render a study (default: ESTCube-1, 2016-07-02, tilt20_fov70, "
                                    "one orbit at 1 s), check it, write netCDF")
-    _add_orbit_options(r)
+    _add_orbit_options(r, ephemeris=True)
     _add_render_options(r)
     r.add_argument("--fail-on-check", dest="fail_on_check", action="store_true", default=True,
                    help="exit status 1 when the analytic check fails (the default; kept for older scripts)")

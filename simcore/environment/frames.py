@@ -1,4 +1,4 @@
-"""Rotation matrices between TEME (SGP4), GCRS (the inertial "ECI") and ITRS (ECEF).
+"""Rotation matrices between TEME (SGP4), GCRS (the inertial "ECI"), EME2000 (J2000) and ITRS (ECEF).
 
 Every matrix is ``R_<to>_from_<from>`` with shape (N, 3, 3), ``v_to = R @ v_from``.
 All Earth-orientation quantities come from pyerfa (the IAU SOFA routines,
@@ -42,6 +42,13 @@ The chain
   GCRS velocities are ``R_gcrs_from_teme @ v_teme``: the precession-nutation
   rate (~1e-11 rad/s) would add < 1e-4 m/s.
 
+* GCRS <- EME2000 (the mean equator and equinox of J2000.0, CCSDS's
+  "EME2000", often called "J2000"): the constant IAU 2006 frame bias,
+  ``v_eme2000 = B v_gcrs`` with ``B`` the first matrix of ``erfa.bp06`` (the
+  bias is independent of the date: 17 mas in right ascension, -6.8 / -16.6 mas
+  in the pole's offsets, i.e. ~0.5 m at 7000 km). Other frames reach EME2000
+  through GCRS.
+
 Speed: the slowly varying part ``S(TT)`` (precession-nutation, bias and
 equation of the equinoxes, ~1400 nutation terms per evaluation) is computed
 with erfa on a coarse grid (``PN_GRID_STEP_S`` = 1 h) and interpolated with a
@@ -78,8 +85,8 @@ from simcore.environment.epochs import Epochs
 PN_GRID_STEP_S = 3600.0      # coarse grid for the precession-nutation part
 _SECONDS_PER_DAY = 86400.0
 
-FRAMES = ("teme", "gcrs", "itrs")
-_ALIASES = {"teme": "teme", "gcrs": "gcrs", "itrs": "itrs", "ecef": "itrs"}
+FRAMES = ("teme", "gcrs", "itrs", "eme2000")
+_ALIASES = {"teme": "teme", "gcrs": "gcrs", "itrs": "itrs", "ecef": "itrs", "eme2000": "eme2000", "j2000": "eme2000"}
 
 
 # ---------------------------------------------------------------------------
@@ -256,6 +263,17 @@ def R_gcrs_from_itrs(epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0, *, exact=False)
     return _T(R_itrs_from_gcrs(epochs, dut1_s, xp_rad, yp_rad, exact=exact))
 
 
+def R_eme2000_from_gcrs(epochs=None):
+    """Return the (3, 3) frame bias GCRS -> EME2000 (J2000 mean equator and equinox), ``erfa.bp06``'s ``rb``.
+
+    Constant in time (IAU 2006 frame bias); ``epochs``, when given, broadcasts it to (N, 3, 3).
+    """
+    rb, _, _ = erfa.bp06(2451545.0, 0.0)
+    if epochs is None:
+        return rb
+    return np.broadcast_to(rb, (len(_epochs(epochs)), 3, 3)).copy()
+
+
 # ---------------------------------------------------------------------------
 # position + velocity
 def _as_n3(name, a, n):
@@ -296,6 +314,21 @@ def _rv_itrs_from_teme(r, v, R3g, W):
     return np.einsum("nij,nj->ni", W, r_pef), np.einsum("nij,nj->ni", W, v_pef)
 
 
+def rv_teme_from_itrs(r_itrs_m, v_itrs_m_s, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0):
+    """Return (r_teme_m, v_teme_m_s), each (N, 3): ITRS state -> TEME state, the inverse of
+    :func:`rv_itrs_from_teme` (``r_pef = W^T r_itrs``, ``v_teme = R3(-GMST82) (W^T v_itrs + omega x r_pef)``)."""
+    epochs = _epochs(epochs)
+    n = len(epochs)
+    r = _as_n3("r_itrs_m", r_itrs_m, n)
+    v = _as_n3("v_itrs_m_s", v_itrs_m_s, n)
+    dut1, xp, yp = _eop(n, dut1_s, xp_rad, yp_rad)
+    gmst82, _, tt = _sidereal(epochs, dut1)
+    Wt, R3t = _T(_W(tt, xp, yp)), _T(_R3(gmst82))
+    r_pef = np.einsum("nij,nj->ni", Wt, r)
+    v_pef = np.einsum("nij,nj->ni", Wt, v) + _omega_cross(r_pef)
+    return np.einsum("nij,nj->ni", R3t, r_pef), np.einsum("nij,nj->ni", R3t, v_pef)
+
+
 def teme_to_all(r_teme_m, v_teme_m_s, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0):
     """Return (r_gcrs_m, v_gcrs_m_s, r_itrs_m, v_itrs_m_s), each (N, 3), from a TEME state.
 
@@ -322,15 +355,21 @@ def _frame_name(name):
     key = str(name).strip().lower()
     if key not in _ALIASES:
         raise ValueError(f"unknown frame {name!r}; valid frames are 'teme', 'gcrs', 'itrs' "
-                         "(alias 'ecef')")
+                         "(alias 'ecef'), 'eme2000' (alias 'j2000')")
     return _ALIASES[key]
 
 
 def R_between(from_frame, to_frame, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0):
-    """Return (N, 3, 3) rotations ``from_frame`` -> ``to_frame`` ('teme', 'gcrs', 'itrs'/'ecef')."""
+    """Return (N, 3, 3) rotations ``from_frame`` -> ``to_frame`` ('teme', 'gcrs', 'itrs'/'ecef',
+    'eme2000'/'j2000'); EME2000 goes through GCRS (the frame bias)."""
     a, b = _frame_name(from_frame), _frame_name(to_frame)
     epochs = _epochs(epochs)
     eop = dict(dut1_s=dut1_s, xp_rad=xp_rad, yp_rad=yp_rad)
+    if a != b and "eme2000" in (a, b):
+        B = R_eme2000_from_gcrs()
+        if a == "eme2000":
+            return R_between("gcrs", b, epochs, dut1_s, xp_rad, yp_rad) @ B.T
+        return B @ R_between(a, "gcrs", epochs, dut1_s, xp_rad, yp_rad)
     if a == b:
         _eop(len(epochs), dut1_s, xp_rad, yp_rad)
         return np.broadcast_to(np.eye(3), (len(epochs), 3, 3)).copy()
@@ -348,7 +387,7 @@ def R_between(from_frame, to_frame, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0):
 def rotate(vectors, from_frame, to_frame, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0):
     """Return ``vectors`` (N, 3) (or (3,) broadcast to every epoch) rotated from ``from_frame`` to ``to_frame``.
 
-    Frames: 'teme', 'gcrs', 'itrs' (alias 'ecef'). This is a pure rotation
+    Frames: 'teme', 'gcrs', 'itrs' (alias 'ecef'), 'eme2000' (alias 'j2000'). This is a pure rotation
     (positions, directions); a velocity into or out of ITRS also needs the
     Earth-rotation term: use :func:`rv_itrs_from_teme`.
     """

@@ -138,7 +138,10 @@ def check_map(reflectivity_map, allow_bright_map=False):
 
 
 def tle_age_note(orbit, epochs):
-    """Return a warning (str) when the span reaches more than 30 days from the TLE epoch, else None."""
+    """Return a warning (str) when the span reaches more than 30 days from the TLE epoch, else None (also for
+    an orbit without a TLE: an ephemeris does not age)."""
+    if not hasattr(orbit, "satrec"):
+        return None
     age = np.asarray(epochs.jd1 - orbit.satrec.jdsatepoch + (epochs.jd2 - orbit.satrec.jdsatepochF))
     worst = float(age[np.argmax(np.abs(age))])
     if abs(worst) <= TLE_AGE_WARN_DAYS:

@@ -73,8 +73,9 @@ class RunOptions:
     config: str = "tilt20_fov70"
     tle: str = None
     satellite: str = None
-    start: str = DEFAULT_START
-    duration_s: float = None          # None: one orbital period
+    orbit_file: str = None            # CCSDS OEM (KVN or XML) instead of a TLE (simcore.environment.ephemeris)
+    start: str = DEFAULT_START        # with orbit_file, None: the ephemeris's first epoch
+    duration_s: float = None          # None: one orbital period (with orbit_file: to the ephemeris's end)
     step_s: float = 1.0
     spin_rate_deg_s: float = _attitude.DEFAULT_TUMBLE_RATE_DEG_S
     spin_axis: tuple = (1.0, 1.0, 1.0)
@@ -115,11 +116,13 @@ class RunOptions:
             d["cloud_scale_km"] = CLOUD_SCALE_KM
         if d["glint"] is None:          # runs without glint keep the settings digest they always had
             d.pop("glint")
+        if d["orbit_file"] is None:     # runs on a TLE keep the settings digest they always had
+            d.pop("orbit_file")
         if d["reflected_samples"] == REFLECTED_SAMPLES:     # runs at the default keep the digest they always had
             d.pop("reflected_samples")
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
-        for k in ("config", "tle", "attitude_file"):
-            v = d[k]
+        for k in ("config", "tle", "attitude_file", "orbit_file"):
+            v = d.get(k)
             if v and os.path.isfile(v):
                 with open(v, "rb") as f:
                     d[k + "_sha256"] = hashlib.sha256(f.read()).hexdigest()
@@ -133,11 +136,16 @@ def study_geometry(opts):
     An attitude file's first row is the run's start, whatever its time origin (``Attitude.from_file``)."""
     if opts.step_s is None or not opts.step_s > 0:
         raise InvalidInputError(f"--step must be a positive number of seconds, got {opts.step_s}")
-    orbit = Orbit.default(opts.satellite) if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
-    duration = orbital_period_s(orbit) if opts.duration_s is None else opts.duration_s
-    if not (np.isfinite(duration) and 0 < duration <= 400 * 86400):
+    orbit = study_orbit(opts)
+    duration = opts.duration_s
+    if duration is None and not getattr(opts, "orbit_file", None):
+        duration = orbital_period_s(orbit)
+    if duration is not None and not (np.isfinite(duration) and 0 < duration <= 400 * 86400):
         raise InvalidInputError(f"--duration must be between 0 and 400 days in seconds, got {duration}")
-    epochs = Epochs.range(opts.start, duration, opts.step_s)
+    if getattr(opts, "orbit_file", None):       # the ephemeris's span (or the part asked for), its gaps left out
+        epochs = orbit.sample_epochs(opts.step_s, opts.start, duration)
+    else:
+        epochs = Epochs.range(DEFAULT_START if opts.start is None else opts.start, duration, opts.step_s)
     t_s = epochs.seconds_since(epochs[0])
     if opts.attitude_file and opts.dynamics:
         raise ValueError("--attitude and --dynamics both set the attitude; give one of them")
@@ -156,6 +164,16 @@ def study_geometry(opts):
     else:
         attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
     return orbit, attitude, compute_geometry(orbit, epochs, attitude)
+
+
+def study_orbit(opts):
+    """Return the orbit ``opts`` name: a CCSDS OEM (``orbit_file``), a TLE file, or the shipped TLE."""
+    if getattr(opts, "orbit_file", None):
+        if opts.tle is not None or opts.satellite is not None:
+            raise InvalidInputError("--orbit (an ephemeris) and --tle/--satellite both give the orbit; give one")
+        from simcore.environment.ephemeris import EphemerisOrbit
+        return EphemerisOrbit.from_file(opts.orbit_file)
+    return Orbit.default(opts.satellite) if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
 
 
 class PreparedRun:
@@ -555,7 +573,9 @@ def _versions():
 
 
 def _tle_age_days(study):
-    """Return the days from the TLE epoch to the run's first epoch (negative: before the epoch)."""
+    """Return the days from the TLE epoch to the run's first epoch (negative: before the epoch; NaN without a TLE)."""
+    if not hasattr(study.orbit, "satrec"):
+        return float("nan")
     sat = study.orbit.satrec
     return (study.epochs.jd1[0] - sat.jdsatepoch) + (study.epochs.jd2[0] - sat.jdsatepochF)
 
@@ -680,7 +700,7 @@ def build_dataset(study, data, variant):
         },
         coords=coords,
     )
-    tle = f"{study.orbit.line1}\n{study.orbit.line2}"
+    tle = f"{study.orbit.line1}\n{study.orbit.line2}" if hasattr(study.orbit, "line1") else ""
     cfg_text = Path(cfg.source).read_text() if cfg.source and os.path.isfile(cfg.source) else ""
     ds.attrs.update({
         "title": "sunsim diode irradiance run",
@@ -688,8 +708,9 @@ def build_dataset(study, data, variant):
         "configuration": cfg.name,
         "configuration_toml": cfg_text,
         "satellite": study.orbit.name or "",
-        "norad_id": int(study.orbit.norad_id),
+        "norad_id": -1 if study.orbit.norad_id is None else int(study.orbit.norad_id),
         "tle": tle,
+        "orbit_source": "TLE" if tle else f"CCSDS OEM {o.orbit_file} (sha256 {study.orbit.sha256})",
         "reflectivity_map": study.map.name,
         "seed": int(o.seed),
         "reflected_samples": int(o.reflected_samples),
