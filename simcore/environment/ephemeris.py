@@ -193,8 +193,9 @@ class EphemerisOrbit:
         first, last = self.span
         start = first if start is None else Epochs.from_any(start)
         if duration_s is None:
-            duration_s = float(last.seconds_since(start)[0]) + 1e-9 * step_s
-            if duration_s <= 0:
+            span = float(last.seconds_since(start)[0])
+            duration_s = (np.floor(span / step_s + 1e-9) + 0.5) * step_s      # the last step at or before the end
+            if span < 0:
                 raise InvalidInputError(f"--start {start.iso()[0]} is at or after the end of the ephemeris "
                                         f"{self.path} ({self.describe_span()})")
         epochs = Epochs.range(start, duration_s, step_s)
