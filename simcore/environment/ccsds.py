@@ -52,7 +52,7 @@ OEM_FRAMES = {"EME2000": "eme2000", "J2000": "eme2000", "GCRF": "gcrs", "TEME": 
               "ITRF-93": "itrs", "ITRF-97": "itrs", "ITRF2000": "itrs", "ITRF2005": "itrs", "ITRF2008": "itrs",
               "ITRF2014": "itrs", "ITRF2020": "itrs", "ITRF1993": "itrs", "ITRF1997": "itrs"}
 # the AttitudeHistory's frame names (simcore.environment.history)
-AEM_FRAMES = {"EME2000": "EME2000", "J2000": "EME2000", "GCRF": "GCRF", "TEME": "TEME"}
+AEM_FRAMES = {"EME2000": "EME2000", "J2000": "EME2000", "GCRF": "GCRF", "ICRF": "GCRF", "TEME": "TEME", "TOD": "TOD"}
 INTERPOLATIONS = ("LAGRANGE", "HERMITE", "LINEAR")
 QUATERNION_TYPES = ("QUATERNION", "QUATERNION/DERIVATIVE", "QUATERNION/RATE", "QUATERNION/ANGVEL")
 QUATERNION_NORM_TOL = 1e-3
@@ -455,6 +455,55 @@ def aem_quaternions(seg):
     a2b = seg.meta["ATTITUDE_DIR"].strip().upper() == "A2B"
     # passive A2B = Hamilton rotation of B vectors into A; body B: body -> frame
     return q.copy(), "body_to_frame" if a2b == body_is_b else "frame_to_body"
+
+
+def read_aem(path, *, limits=None):
+    """Return the :class:`~simcore.environment.history.AttitudeHistory` of a CCSDS AEM (KVN or XML).
+
+    Every segment's quaternions are turned into sunsim's ``body_to_frame`` as declared (module docstring),
+    samples outside a segment's USEABLE_START_TIME .. USEABLE_STOP_TIME are left out (counted), and where a
+    segment starts at the epoch the previous one stops (a manoeuvre boundary) the later segment's sample is
+    kept. All segments must refer to one inertial frame. The history interpolates by slerp whatever
+    INTERPOLATION_METHOD the message declares (as for every recorded attitude in sunsim), and flags gaps,
+    jumps and frozen stretches with ``limits`` (:class:`~simcore.environment.history.HistoryLimits`).
+    """
+    from simcore.environment.history import AttitudeHistory
+    msg = read_message(path, "AEM")
+    frames_seen = {aem_frames(s.meta)[0] for s in msg.segments}
+    if len(frames_seen) > 1:
+        raise CCSDSError(f"{msg.path}: the AEM's segments refer to different frames ({', '.join(sorted(frames_seen))});"
+                         " give one frame for the whole history")
+    times, quats, outside, boundary = [], [], 0, 0
+    for seg in msg.segments:
+        q, direction = aem_quaternions(seg)
+        if direction == "frame_to_body":
+            q = q * np.array([1.0, -1.0, -1.0, -1.0])
+        keep = np.ones(len(seg.epochs), bool)
+        if seg.useable_start is not None:
+            keep &= seg.epochs.seconds_since(seg.useable_start) >= -1e-6
+        if seg.useable_stop is not None:
+            keep &= seg.epochs.seconds_since(seg.useable_stop) <= 1e-6
+        outside += int((~keep).sum())
+        ep = seg.epochs[np.flatnonzero(keep)]
+        if times and len(ep) and ep.seconds_since(times[-1][-1])[0] <= 1e-9:
+            times[-1], quats[-1] = times[-1][:-1], quats[-1][:-1]          # the boundary: the later segment's
+            boundary += 1
+        times.append(ep.datetime64)
+        quats.append(q[keep])
+    epochs = Epochs.from_datetime64(np.concatenate(times))
+    if len(epochs) == 0:
+        raise CCSDSError(f"{msg.path}: no sample lies inside the segments' USEABLE_START_TIME .. USEABLE_STOP_TIME")
+    return AttitudeHistory(epochs, np.concatenate(quats), frame=frames_seen.pop(), direction="body_to_frame",
+                           norm_tol=QUATERNION_NORM_TOL, limits=limits, source=msg.path,
+                           dropped={"outside_useable_span": outside, "segment_boundary_duplicates": boundary})
+
+
+def is_aem(text):
+    """Return True if ``text`` looks like a CCSDS AEM (KVN version line or an ``<aem>`` XML root)."""
+    head = text.lstrip()[:4000]
+    if head.startswith("CCSDS_AEM_VERS"):
+        return True
+    return head.startswith("<") and re.search(r"<(\w+:)?aem[\s>]", head) is not None
 
 
 # ---------------------------------------------------------------------------

@@ -342,6 +342,7 @@ def read_attitude_history(path, *, start=None, frame=None, direction=None, limit
 
     * a GRAINS export or an OPS-SAT 2021 log (their own convention; ``frame`` overrides OPSSAT_FRAME);
     * sunsim's absolute-time CSV (``time_utc,...``, :meth:`AttitudeHistory.from_csv`);
+    * a CCSDS AEM, KVN or XML (:func:`simcore.environment.ccsds.read_aem`);
     * the relative-time CSV ``t_s,qw,qx,qy,qz`` (``q_gcrs_from_body`` unless ``frame``/``direction`` say
       otherwise): it carries no date, so ``start`` (its first row's UTC time) is required.
     """
@@ -354,6 +355,12 @@ def read_attitude_history(path, *, start=None, frame=None, direction=None, limit
     if first.startswith("CADC0884"):
         _no_direction(direction, path, "OPS-SAT 2021 log")
         return read_opssat_log_2021(path, frame=frame or OPSSAT_FRAME, limits=limits)[0]
+    from simcore.environment import ccsds
+    if ccsds.is_aem(text):                      # a CCSDS AEM declares its own frame and direction
+        if frame is not None or direction is not None:
+            raise InvalidInputError(f"{path} is a CCSDS AEM, which declares its frame and direction; drop the "
+                                    "frame/direction options")
+        return ccsds.read_aem(path, limits=limits)
     data = [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if data and data[0].lower().startswith("time_utc"):
         return AttitudeHistory.from_csv(path, frame=frame, direction=direction, limits=limits)
@@ -367,7 +374,7 @@ def read_attitude_history(path, *, start=None, frame=None, direction=None, limit
         return AttitudeHistory(epochs, att.q_gcrs_from_body, frame=frame or "GCRF",
                                direction=direction or "body_to_frame", limits=limits, source=path)
     raise InvalidInputError(f"{path}: not an attitude file sunsim reads (a time_utc,qw,qx,qy,qz or t_s,qw,qx,qy,qz "
-                            f"CSV, a GRAINS export or an OPS-SAT 2021 log); first line {first[:60]!r}")
+                            f"CSV, a CCSDS AEM, a GRAINS export or an OPS-SAT 2021 log); first line {first[:60]!r}")
 
 
 def _no_direction(direction, path, what):
