@@ -45,7 +45,9 @@ from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
 from simcore.pipeline.preflight import REFLECTED_SAMPLES, check_map, check_numbers, check_variant, tle_age_note
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
-from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
+from simcore.environment.geometry import compute_geometry, orbital_period_s
+from simcore.pipeline import schedule as _schedule
+from simcore.pipeline.schedule import study_geometry  # noqa: F401 (its old home: callers import it from here)
 
 # The analytic reference for the albedo check uses cells refined 2 x 2; its estimated discretisation error
 # (check.discretisation_bound, a third of |native - refined|) joins each diode-epoch's variance. On a sunlit
@@ -74,12 +76,18 @@ class RunOptions:
     tle: str = None
     satellite: str = None
     orbit_file: str = None            # CCSDS OEM (KVN or XML) instead of a TLE (simcore.environment.ephemeris)
-    start: str = DEFAULT_START        # with orbit_file, None: the ephemeris's first epoch
-    duration_s: float = None          # None: one orbital period (with orbit_file: to the ephemeris's end)
+    start: str = None                  # None: the attitude history's first sample, the ephemeris's first epoch,
+                                       # else DEFAULT_START (schedule.py)
+    duration_s: float = None          # None: the rest of the attitude history (or ephemeris), else one orbital period
     step_s: float = 1.0
     spin_rate_deg_s: float = _attitude.DEFAULT_TUMBLE_RATE_DEG_S
     spin_axis: tuple = (1.0, 1.0, 1.0)
-    attitude_file: str = None          # CSV t_s,qw,qx,qy,qz (overrides the tumble)
+    attitude_file: str = None          # attitude history file (environment.telemetry.read_attitude_history)
+    attitude_frame: str = None         # its frame / direction where the file does not declare them
+    attitude_direction: str = None
+    attitude_history: object = None    # in-process AttitudeHistory (instead of attitude_file)
+    times_file: str = None             # explicit epochs: one ISO-8601 UTC time per line (schedule.read_times)
+    epochs: object = None              # explicit epochs in-process (an Epochs)
     dynamics: str = None               # inertia 'IXX,IYY,IZZ[,IXY,IXZ,IYZ]' kg m^2: torque-free Euler dynamics
     rel_se_direct: float = 0.002       # target relative standard errors (None: fixed sample counts)
     rel_se_albedo: float = 0.01
@@ -116,64 +124,17 @@ class RunOptions:
             d["cloud_scale_km"] = CLOUD_SCALE_KM
         if d["glint"] is None:          # runs without glint keep the settings digest they always had
             d.pop("glint")
-        if d["orbit_file"] is None:     # runs on a TLE keep the settings digest they always had
-            d.pop("orbit_file")
         if d["reflected_samples"] == REFLECTED_SAMPLES:     # runs at the default keep the digest they always had
             d.pop("reflected_samples")
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
-        for k in ("config", "tle", "attitude_file", "orbit_file"):
+        _schedule.spec_fields(self, d)
+        for k in ("config", "tle", "attitude_file", "times_file", "orbit_file"):
             v = d.get(k)
             if v and os.path.isfile(v):
                 with open(v, "rb") as f:
                     d[k + "_sha256"] = hashlib.sha256(f.read()).hexdigest()
         d["sunsim_version"] = __version__
         return d
-
-
-def study_geometry(opts):
-    """Return (orbit, attitude, geometry) of the orbit, time span and attitude that ``opts`` describe.
-
-    An attitude file's first row is the run's start, whatever its time origin (``Attitude.from_file``)."""
-    if opts.step_s is None or not opts.step_s > 0:
-        raise InvalidInputError(f"--step must be a positive number of seconds, got {opts.step_s}")
-    orbit = study_orbit(opts)
-    duration = opts.duration_s
-    if duration is None and not getattr(opts, "orbit_file", None):
-        duration = orbital_period_s(orbit)
-    if duration is not None and not (np.isfinite(duration) and 0 < duration <= 400 * 86400):
-        raise InvalidInputError(f"--duration must be between 0 and 400 days in seconds, got {duration}")
-    if getattr(opts, "orbit_file", None):       # the ephemeris's span (or the part asked for), its gaps left out
-        epochs = orbit.sample_epochs(opts.step_s, opts.start, duration)
-    else:
-        epochs = Epochs.range(DEFAULT_START if opts.start is None else opts.start, duration, opts.step_s)
-    t_s = epochs.seconds_since(epochs[0])
-    if opts.attitude_file and opts.dynamics:
-        raise ValueError("--attitude and --dynamics both set the attitude; give one of them")
-    if opts.attitude_file:
-        history = _attitude.Attitude.from_file(opts.attitude_file)
-        span = history.t_s[-1] - history.t_s[0]
-        if t_s[-1] > span:
-            raise InvalidInputError(f"the attitude file {opts.attitude_file} spans {span:g} s but the run needs "
-                                    f"{t_s[-1]:g} s after its start; supply a longer history or a shorter --duration")
-        attitude = history.resample(history.t_s[0] + t_s)
-    elif opts.dynamics:
-        from simcore.environment.dynamics import parse_inertia, propagate_torque_free
-        axis = np.asarray(opts.spin_axis, dtype=float)
-        w0 = np.radians(opts.spin_rate_deg_s) * axis / np.linalg.norm(axis)
-        attitude, _ = propagate_torque_free(t_s, parse_inertia(opts.dynamics), w0)
-    else:
-        attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
-    return orbit, attitude, compute_geometry(orbit, epochs, attitude)
-
-
-def study_orbit(opts):
-    """Return the orbit ``opts`` name: a CCSDS OEM (``orbit_file``), a TLE file, or the shipped TLE."""
-    if getattr(opts, "orbit_file", None):
-        if opts.tle is not None or opts.satellite is not None:
-            raise InvalidInputError("--orbit (an ephemeris) and --tle/--satellite both give the orbit; give one")
-        from simcore.environment.ephemeris import EphemerisOrbit
-        return EphemerisOrbit.from_file(opts.orbit_file)
-    return Orbit.default(opts.satellite) if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
 
 
 class PreparedRun:
@@ -183,7 +144,9 @@ class PreparedRun:
         self.opts = opts
         self.config = SatelliteConfig.load(opts.config, dead=list(opts.dead),
                                            extra_flat_diodes=True if opts.extra_flat_diodes else None)
-        self.orbit, self.attitude, self.geometry = study_geometry(opts)
+        self.plan = _schedule.plan(opts)
+        self.orbit, self.attitude = self.plan.orbit, self.plan.attitude
+        self.geometry = compute_geometry(self.orbit, self.plan.epochs, self.attitude)
         self.epochs = self.geometry.epochs
         self.clouds = None
         if getattr(opts, "clouds", None) is None:
@@ -700,6 +663,7 @@ def build_dataset(study, data, variant):
         },
         coords=coords,
     )
+    ds = _schedule.annotate(ds, study, n)
     tle = f"{study.orbit.line1}\n{study.orbit.line2}" if hasattr(study.orbit, "line1") else ""
     cfg_text = Path(cfg.source).read_text() if cfg.source and os.path.isfile(cfg.source) else ""
     ds.attrs.update({
@@ -791,7 +755,7 @@ def prepare(opts):
         raise InvalidInputError(f"all {study.config.n_diodes} diodes of {study.config.name} are dead (--dead "
                                 f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
     study.variant = variant
-    study.notes = [n for n in (tle_age_note(study.orbit, study.epochs),) if n]
+    study.notes = [n for n in (tle_age_note(study.orbit, study.epochs),) if n] + list(study.plan.notes)
     return study
 
 
@@ -960,7 +924,7 @@ def options_of(ds, path):
     """Return the RunOptions a run file was made with (from its 'options' attribute)."""
     spec = json.loads(ds.attrs["options"])
     names = {f.name for f in dataclasses.fields(RunOptions)}
-    kw = {k: v for k, v in spec.items() if k in names}
+    kw = _schedule.explicit_options({k: v for k, v in spec.items() if k in names}, ds)
     for k in ("dead", "spin_axis"):
         if k in kw:
             kw[k] = tuple(kw[k])
