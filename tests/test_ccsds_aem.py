@@ -195,3 +195,24 @@ def test_written_aem_reads_back_to_the_same_attitude(tmp_path):
         want = q if direction == "body_to_frame" else q * [1, -1, -1, -1]
         sign = np.sign(np.sum(h.q_frame_from_body * want, axis=1))[:, None]
         np.testing.assert_allclose(h.q_frame_from_body * sign, want, atol=1e-15)
+
+
+def test_a_run_plan_takes_the_aem_samples_and_the_oem_orbit(tmp_path):
+    # `sunsim run --attitude FILE.aem --orbit FILE.oem` with neither --start nor --duration: the run's epochs are the
+    # AEM's trusted samples, its attitude the AEM's, its orbit the OEM's (schedule.plan, no rendering here)
+    from simcore.environment.ephemeris import write_orbit_oem
+    from simcore.environment.orbit import Orbit
+    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.schedule import plan
+    start = "2016-07-02T00:30:00Z"
+    oem = tmp_path / "o.oem"
+    write_orbit_oem(oem, Orbit.default(), Epochs.range("2016-07-02T00:25:00Z", 900, 60.0))
+    s = np.sqrt(0.5)
+    aem = _aem(tmp_path / "a.aem", np.array([[s, 0, 0, s]] * 5), start=start, step=10.0, frame_a="EME2000")
+    p = plan(RunOptions(attitude_file=str(aem), orbit_file=str(oem)))
+    assert p.source == "attitude samples" and len(p.epochs) == 5
+    np.testing.assert_allclose(p.epochs.seconds_since(start), 10.0 * np.arange(5), atol=1e-6)
+    np.testing.assert_allclose(p.attitude.to_gcrs([1.0, 0, 0]), np.tile([0, 1, 0], (5, 1)), atol=1e-6)
+    late = _aem(tmp_path / "late.aem", np.array([[s, 0, 0, s]] * 5), start="2016-07-02T00:39:30Z", step=10.0)
+    with pytest.raises(InvalidInputError, match="covers 2016-07-02T00:25:00.000Z .. 2016-07-02T00:39:00.000Z"):
+        plan(RunOptions(attitude_file=str(late), orbit_file=str(oem)))
