@@ -225,3 +225,17 @@ def test_a_run_on_an_oem_of_the_sgp4_orbit_reproduces_the_tle_run(tmp_path):
     assert abs(a - b) / b < 1e-3
     assert b > 1e3                                              # sunlit: real numbers compared
     assert eph.attrs["orbit_source"].startswith("CCSDS OEM") and eph.attrs["tle"] == ""
+
+
+@pytest.mark.parametrize("frame", ["EME2000", "ITRF"])
+def test_period_of_an_ephemeris_is_the_inertial_keplerian_one(tmp_path, frame):
+    # a circle of radius a: T = 2 pi sqrt(a^3 / GM) whatever frame the message is written in
+    t = np.arange(12) * 60.0
+    r, v = _circle(t)
+    ep = Epochs.from_any(START) + t
+    if frame == "ITRF":
+        r_teme = np.einsum("nij,nj->ni", frames.R_between("gcrs", "teme", ep), r)
+        v_teme = np.einsum("nij,nj->ni", frames.R_between("gcrs", "teme", ep), v)
+        r, v = frames.rv_itrs_from_teme(r_teme, v_teme, ep)
+    path = _kvn(tmp_path / "p.oem", ccsds.format_epochs(ep), np.hstack([r, v]) / 1e3, frame=frame)
+    assert EphemerisOrbit.from_file(path).period_s == pytest.approx(2 * math.pi / N_RAD_S, rel=1e-9)

@@ -152,9 +152,10 @@ class EphemerisOrbit:
 
     @property
     def period_s(self):
-        """Return the Keplerian period (s) of the first state (vis-viva semi-major axis, GM of IERS 2010)."""
-        p = self.pieces[0]
-        r, v = np.linalg.norm(p.r[0]), np.linalg.norm(p.v[0])
+        """Return the Keplerian period (s) of the first usable state in GCRS (vis-viva semi-major axis, GM of IERS
+        2010; inertial, so an ITRF ephemeris's Earth-relative velocity is not mistaken for the orbital one)."""
+        st = self.propagate(self.epoch)
+        r, v = np.linalg.norm(st.r_gcrs_m[0]), np.linalg.norm(st.v_gcrs_m_s[0])
         a = 1.0 / (2.0 / r - v * v / MU_EARTH_M3_S2)
         return float(2 * np.pi * np.sqrt(a ** 3 / MU_EARTH_M3_S2))
 
