@@ -327,7 +327,7 @@ def cmd_view(args):
 
 
 def cmd_export(args):
-    """``sunsim export RUN.nc --format csv|aem|basilisk``: readings, attitude or Basilisk CSS values to a file."""
+    """``sunsim export RUN.nc --format csv|aem|oem|basilisk``: readings, attitude, orbit or Basilisk values."""
     from simcore.pipeline.export import export
     print(export(args.run, args.format, args.output, diode=args.diode, noise=args.noise, seed=args.seed))
     return 0
@@ -822,11 +822,12 @@ def build_parser():
     va.add_argument("--json", action="store_true")
     va.set_defaults(func=cmd_validate)
 
-    ex = sub.add_parser("export", help="a run's readings (csv: irradiance, photocurrent, ADC counts), attitude (aem: "
-                                       "CCSDS AEM) or Basilisk CSS values (basilisk) to a file (docs/ccsds.md)")
+    ex = sub.add_parser("export", help="a run's readings (csv: irradiance, photocurrent, ADC counts), attitude (aem), "
+                                       "orbit (oem) or Basilisk CSS values (basilisk) to a file (docs/ccsds.md)")
     ex.add_argument("run", metavar="RUN.nc")
-    ex.add_argument("--format", required=True, choices=["csv", "aem", "basilisk"])
-    ex.add_argument("-o", "--output", metavar="FILE", help="default: beside RUN.nc (_readings.csv, .aem, _basilisk.csv)")
+    ex.add_argument("--format", required=True, choices=["csv", "aem", "oem", "basilisk"])
+    ex.add_argument("-o", "--output", metavar="FILE", help="default: beside RUN.nc (_readings.csv, .aem, .oem, "
+                    "_basilisk.csv)")
     ex.add_argument("--diode", default="BPW34FS", help="csv: the photodiode part of the sensor chain (default %(default)s)")
     ex.add_argument("--noise", action="store_true", help="csv: shot and Johnson noise in the sensor chain")
     ex.add_argument("--seed", type=int, default=0, help="csv: seed of the noise (default %(default)s)")

@@ -16,7 +16,7 @@ from simcore.sensor.chain import DIODES
 def run_file(tmp_path_factory):
     from simcore.pipeline.run import RunOptions, execute
     path = tmp_path_factory.mktemp("export") / "run.nc"
-    execute(RunOptions(start="2016-07-02T00:45:00Z", duration_s=30, step_s=10.0, rel_se_direct=None,
+    execute(RunOptions(start="2016-07-02T00:45:00Z", duration_s=80, step_s=10.0, rel_se_direct=None,
                        rel_se_albedo=None, direct_samples=256, albedo_samples=256, dead=(4,), output=str(path)))
     return str(path)
 
@@ -34,7 +34,7 @@ def test_readings_csv_follows_the_sensor_chain_equations(run_file, tmp_path, cap
     rows = _table(out)
     ds = xr.load_dataset(run_file)
     e = ds.irradiance.sum("component").values
-    assert len(rows) == ds.sizes["time"] == 3
+    assert len(rows) == ds.sizes["time"] == 8
     d = DIODES["BPW34FS"]
     # thesis eqs. 4.16-4.19 and 4.24: I = R A E_S0 E / 1366.1 W/m^2 + I_D (25 degC, no errors); counts =
     # round(I R_F (2^11 - 1) / 1 V), R_F = 500 ohm, clipped to 0 .. 2047; a dead diode reads 0
@@ -80,6 +80,15 @@ def test_basilisk_export_is_coarse_sun_sensors_convention(run_file, tmp_path):
         assert int(row["sim_nanos"]) == round(float(ds.t_s[i]) * 1e9)
     # a diode facing the Sun at 1 AU reads ~1 (the run: July, 1.0167 AU, so ~0.967)
     assert 0.9 < max(float(r[f"cos_value_d{k}"]) for r in rows for k in range(ds.sizes["diode"])) < 1.05
+
+
+def test_oem_export_reads_back_to_the_run_orbit(run_file, tmp_path):
+    from simcore.environment.ephemeris import EphemerisOrbit
+    out = tmp_path / "o.oem"
+    assert main(["export", run_file, "--format", "oem", "-o", str(out)]) == 0
+    ds = xr.load_dataset(run_file)
+    st = EphemerisOrbit.from_file(out).propagate(Epochs.from_datetime64(ds.time.values))
+    np.testing.assert_allclose(st.r_gcrs_m, ds.r_sat_gcrs.values, atol=1e-6)     # at its nodes: the states
 
 
 def test_bad_export_input_gets_one_line(run_file, tmp_path, capsys):

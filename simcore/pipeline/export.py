@@ -6,6 +6,8 @@
   a seed), so that a hardware test bench can replay them.
 * ``aem``: the run's attitude as a CCSDS AEM 2.0 (KVN): GCRF -> SC_BODY_1, A2B, scalar first
   (:func:`simcore.environment.ccsds.write_aem`).
+* ``oem``: the run's orbit as a CCSDS OEM 2.0 (KVN, EME2000, Lagrange of degree 7) at the run's epochs, its TLE
+  propagated again (the run file keeps positions, not velocities); ``sunsim run --orbit`` reads it back.
 * ``basilisk``: the readings in the convention of Basilisk's ``coarseSunSensor`` (its ``CSSArraySensorMsg``
   ``CosValue``), so that a Basilisk simulation can replay sunsim's traced readings in place of its own.
 
@@ -37,12 +39,12 @@ from simcore.errors import InvalidInputError
 from simcore.pipeline.run import open_run
 from simcore.pipeline.store import atomic_write, check_writable
 
-FORMATS = ("csv", "aem", "basilisk")
-SUFFIX = {"csv": "_readings.csv", "aem": ".aem", "basilisk": "_basilisk.csv"}
+FORMATS = ("csv", "aem", "oem", "basilisk")
+SUFFIX = {"csv": "_readings.csv", "aem": ".aem", "oem": ".oem", "basilisk": "_basilisk.csv"}
 
 
 def default_output(run_path, fmt):
-    """Return the export's path beside the run file: RUN_readings.csv, RUN.aem or RUN_basilisk.csv."""
+    """Return the export's path beside the run file: RUN_readings.csv, RUN.aem, RUN.oem or RUN_basilisk.csv."""
     stem = run_path[:-3] if run_path.endswith(".nc") else run_path
     return stem + SUFFIX[fmt]
 
@@ -117,6 +119,21 @@ def _per_diode(columns, prefix, values):
         columns[f"{prefix}_d{k}"] = values[:, k]
 
 
+def _write_orbit(ds, path, head):
+    from simcore.environment.ephemeris import write_orbit_oem
+    from simcore.environment.orbit import Orbit
+    lines = str(ds.attrs.get("tle", "")).splitlines()
+    if len(lines) != 2:
+        raise InvalidInputError(f"this run's orbit is not a TLE ({ds.attrs.get('orbit_source', 'unknown')}); its "
+                                "ephemeris file is already the OEM to give 'sunsim run --orbit'")
+    if ds.sizes["time"] < 8:
+        raise InvalidInputError(f"the run has {ds.sizes['time']} epochs; an OEM interpolated with Lagrange of degree 7 "
+                                "needs at least 8 states: export a longer run")
+    orbit = Orbit.from_tle(*lines, name=ds.attrs.get("satellite") or None)
+    atomic_write(path, lambda tmp: write_orbit_oem(tmp, orbit, Epochs.from_datetime64(ds["time"].values),
+                                                   frame="EME2000", degree=7))
+
+
 def export(run_path, fmt, output=None, *, diode="BPW34FS", noise=False, seed=0):
     """Write the run's export in ``fmt`` (:data:`FORMATS`) to ``output`` (default :func:`default_output`);
     return the path. Every input is checked before anything is written."""
@@ -129,6 +146,9 @@ def export(run_path, fmt, output=None, *, diode="BPW34FS", noise=False, seed=0):
             f"{ds.sizes['time']} epochs x {ds.sizes['diode']} diodes)",
             f"diodes: {', '.join(str(n) for n in ds['diode_name'].values)}",
             "normals (body frame): " + "; ".join(" ".join(f"{x:.9f}" for x in n) for n in ds["normal_body"].values)]
+    if fmt == "oem":
+        _write_orbit(ds, path, head)
+        return path
     if fmt == "aem":
         epochs = Epochs.from_datetime64(ds["time"].values)
         atomic_write(path, lambda tmp: ccsds.write_aem(
