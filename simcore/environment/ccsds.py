@@ -43,7 +43,8 @@ import erfa
 import numpy as np
 
 from simcore.environment.epochs import Epochs
-from simcore.errors import InputNotFoundError, InvalidInputError
+from simcore.environment.history import AttitudeHistory, read_text
+from simcore.errors import InvalidInputError
 
 VERSIONS = {"OEM": ("1.0", "2.0", "3.0"), "AEM": ("1.0", "2.0")}
 TIME_SYSTEMS = ("UTC", "TAI", "TT", "GPS")
@@ -145,27 +146,10 @@ def format_epochs(epochs):
 
 # ---------------------------------------------------------------------------
 # reading: KVN and XML into a Message
-def _read_text(path, kind):
-    path = os.fspath(path)
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
-    except FileNotFoundError:
-        raise InputNotFoundError(f"{kind} file {path} not found; give an existing CCSDS {kind} (KVN or XML)") from None
-    except OSError as exc:
-        raise CCSDSError(f"cannot read {kind} file {path}: {exc.strerror}") from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = None
-    if text is None or "\x00" in text:
-        raise CCSDSError(f"{path} is not a CCSDS {kind} (binary data); give a KVN or XML text file")
-    return path, text
-
-
 def read_message(path, kind):
     """Return the :class:`Message` of a CCSDS ``kind`` ('OEM' or 'AEM') file, KVN or XML (found by content)."""
-    path, text = _read_text(path, kind)
+    path = os.fspath(path)
+    text = read_text(path, f"CCSDS {kind} (KVN or XML)")
     if text.lstrip().startswith("<"):
         msg = _parse_xml(text, path, kind)
     else:
@@ -385,8 +369,6 @@ def _check_oem_segment(seg, path):
     frame = m["REF_FRAME"].strip().upper()
     if frame not in OEM_FRAMES:
         raise CCSDSError(f"{where}unknown REF_FRAME {m['REF_FRAME']!r}; sunsim reads {', '.join(OEM_FRAMES)}")
-    if "REF_FRAME_EPOCH" in m and frame in ("EME2000", "J2000", "GCRF", "ITRF"):
-        pass                                  # these frames are not of-date: their REF_FRAME_EPOCH is immaterial
     if seg.values.shape[1] not in (6, 9):
         raise CCSDSError(f"{where}OEM data lines hold an epoch and 6 (X Y Z X_DOT Y_DOT Z_DOT) or 9 numbers "
                          f"(with accelerations); found {seg.values.shape[1]}")
@@ -467,7 +449,6 @@ def read_aem(path, *, limits=None):
     INTERPOLATION_METHOD the message declares (as for every recorded attitude in sunsim), and flags gaps,
     jumps and frozen stretches with ``limits`` (:class:`~simcore.environment.history.HistoryLimits`).
     """
-    from simcore.environment.history import AttitudeHistory
     msg = read_message(path, "AEM")
     frames_seen = {aem_frames(s.meta)[0] for s in msg.segments}
     if len(frames_seen) > 1:
