@@ -65,7 +65,7 @@ def truth():
 def _q_of(M):
     """An A2B quaternion (q1, q2, q3, qc) of the matrix M (v_B = M v_A), by the standard's formula inverted."""
     qc = 0.5 * np.sqrt(1.0 + np.trace(M))
-    return np.array([(M[1, 2] - M[2, 1]) / (4 * qc), (M[2, 0] - M[0, 2]) / (4 * qc), (M[0, 1] - M[1, 0]) / (4 * qc), qc])
+    return np.array([M[1, 2] - M[2, 1], M[2, 0] - M[0, 2], M[0, 1] - M[1, 0], 4 * qc * qc]) / (4 * qc)
 
 
 CONVENTIONS = [

@@ -158,14 +158,20 @@ def read_message(path, kind):
         _check_segment(seg, msg)
     for a, b in zip(msg.segments, msg.segments[1:]):
         if b.epochs.seconds_since(a.epochs[-1])[0] < 0:
-            raise CCSDSError(f"{path}:{b.lines[0]}: segment starting {b.epochs.iso()[0]} overlaps the one before "
+            raise CCSDSError(f"{_where(path, b.lines[0])}segment starting {b.epochs.iso()[0]} overlaps the one before "
                              f"(it ends {a.epochs.iso()[-1]}); segments must follow in time order")
     return msg
 
 
+def _where(path, line):
+    """Return 'path:line: ' (or 'path: ' where the line is unknown, as in XML) for a message."""
+    return f"{path}:{line}: " if line else f"{path}: "
+
+
 def _check_header(header, version, path, kind):
     if version is None:
-        raise CCSDSError(f"{path}: not a CCSDS {kind}: the first keyword must be CCSDS_{kind}_VERS")
+        raise CCSDSError(f"{path}: not a CCSDS {kind}: it declares no version (the first keyword must be "
+                         f"CCSDS_{kind}_VERS; in XML the root's version attribute)")
     if version not in VERSIONS[kind]:
         raise CCSDSError(f"{path}: CCSDS_{kind}_VERS = {version} is not a version sunsim reads "
                          f"({', '.join(VERSIONS[kind])})")
@@ -314,7 +320,7 @@ def _build(kind, version, header, raw_segments, path):
     msg = Message(kind=kind, version=version, header=header, path=path)
     for meta, rows, lines in raw_segments:
         line0 = meta.pop("_line", 0)
-        where = f"{path}:{line0}: " if line0 else f"{path}: "
+        where = _where(path, line0)
         for key in _META_REQUIRED[kind]:
             if key not in meta:
                 raise CCSDSError(f"{where}the segment's metadata lacks {key}, a required keyword "
@@ -326,7 +332,7 @@ def _build(kind, version, header, raw_segments, path):
         widths = {len(r[1]) for r in rows}
         if len(widths) != 1:
             i = next(i for i, r in enumerate(rows) if len(r[1]) != len(rows[0][1]))
-            where_row = f"{path}:{lines[i]}: " if lines[i] else where
+            where_row = _where(path, lines[i]) if lines[i] else where
             raise CCSDSError(f"{where_row}data line with {len(rows[i][1])} numbers after the epoch where the "
                              f"segment's first has {len(rows[0][1])}")
         seg = Segment(meta=meta, epochs=epochs, values=np.array([r[1] for r in rows], dtype=float), lines=lines)
@@ -344,7 +350,7 @@ def _check_segment(seg, msg):
     dt = np.diff(t)
     if np.any(dt <= 0):
         i = int(np.flatnonzero(dt <= 0)[0]) + 1
-        where = f"{path}:{seg.lines[i]}: " if seg.lines[i] else f"{path}: "
+        where = _where(path, seg.lines[i])
         raise CCSDSError(f"{where}epoch {seg.epochs.iso()[i]} does not come after {seg.epochs.iso()[i - 1]}; "
                          "epochs must increase strictly within a segment")
     lo = seg.epochs.seconds_since(seg.start)
@@ -352,7 +358,7 @@ def _check_segment(seg, msg):
     out = (lo < -1e-6) | (hi > 1e-6)
     if np.any(out):
         i = int(np.flatnonzero(out)[0])
-        where = f"{path}:{seg.lines[i]}: " if seg.lines[i] else f"{path}: "
+        where = _where(path, seg.lines[i])
         raise CCSDSError(f"{where}epoch {seg.epochs.iso()[i]} lies outside the segment's START_TIME .. STOP_TIME "
                          f"({seg.meta['START_TIME']} .. {seg.meta['STOP_TIME']})")
     if msg.kind == "OEM":
@@ -363,7 +369,7 @@ def _check_segment(seg, msg):
 
 def _check_oem_segment(seg, path):
     m = seg.meta
-    where = f"{path}:{seg.lines[0]}: " if seg.lines[0] else f"{path}: "
+    where = _where(path, seg.lines[0])
     if m["CENTER_NAME"].strip().upper() != "EARTH":
         raise CCSDSError(f"{where}CENTER_NAME = {m['CENTER_NAME']}: sunsim flies Earth orbits only (EARTH)")
     frame = m["REF_FRAME"].strip().upper()
@@ -385,7 +391,7 @@ def _check_oem_segment(seg, path):
 
 def _check_aem_segment(seg, path):
     m = seg.meta
-    where = f"{path}:{seg.lines[0]}: " if seg.lines[0] else f"{path}: "
+    where = _where(path, seg.lines[0])
     atype = m["ATTITUDE_TYPE"].strip().upper()
     if atype not in QUATERNION_TYPES:
         raise CCSDSError(f"{where}ATTITUDE_TYPE = {m['ATTITUDE_TYPE']}: sunsim reads quaternion AEMs "
@@ -406,7 +412,7 @@ def _check_aem_segment(seg, path):
     off = ~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOL)
     if np.any(off):
         i = int(np.flatnonzero(off)[0])
-        where_row = f"{path}:{seg.lines[i]}: " if seg.lines[i] else f"{path}: "
+        where_row = _where(path, seg.lines[i])
         raise CCSDSError(f"{where_row}the quaternion at {seg.epochs.iso()[i]} has norm {norm[i]:.6g}, not 1 within "
                          f"{QUATERNION_NORM_TOL:g} ({int(off.sum())} such rows); check QUATERNION_TYPE and the columns")
 
