@@ -43,7 +43,8 @@ from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
-from simcore.pipeline.preflight import REFLECTED_SAMPLES, check_map, check_numbers, check_variant, tle_age_note
+from simcore.pipeline.preflight import (REFLECTED_SAMPLES, check_map, check_numbers, check_variant, map_for_diodes,
+                                       tle_age_note)
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
 from simcore.environment.geometry import compute_geometry, orbital_period_s
 from simcore.pipeline import schedule as _schedule
@@ -148,9 +149,9 @@ class PreparedRun:
         self.epochs = self.geometry.epochs
         self.clouds = None
         if getattr(opts, "clouds", None) is None:
-            self.map = band.resolve_map(opts.reflectivity)
+            self.map = band.resolve_map(map_for_diodes(opts.reflectivity, self.config))
         else:
-            self.clouds = band.cloud_weather(opts.reflectivity, opts.cloud_scale_km)
+            self.clouds = band.cloud_weather(map_for_diodes(opts.reflectivity, self.config), opts.cloud_scale_km)
             self.map = self.clouds.realise(opts.clouds)
         self.check_refine = CHECK_REFINE if self.clouds is None else CHECK_REFINE_CLOUDS
         self.map_refined = self.map.refined(self.check_refine)
@@ -750,7 +751,8 @@ def prepare(opts):
         raise InvalidInputError(f"all {study.config.n_diodes} diodes of {study.config.name} are dead (--dead "
                                 f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
     study.variant = variant
-    study.notes = [n for n in (tle_age_note(study.orbit, study.epochs),) if n] + list(study.plan.notes)
+    study.notes = ([n for n in (tle_age_note(study.orbit, study.epochs),) if n] + list(study.plan.notes)
+                   + list(study.config.notes))
     return study
 
 
