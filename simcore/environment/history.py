@@ -70,7 +70,8 @@ class HistoryLimits:
     """The limits of :class:`AttitudeHistory`'s flags.
 
     ``max_gap_s`` = 30 s: three of OPS-SAT's 10 s steps; at the 2-5 deg/s a tumbling CubeSat turns, slerp
-    across 30 s can miss a change of axis by tens of degrees. ``max_rate_deg_s`` = 10 deg/s: above any rate
+    across 30 s can miss a change of axis by tens of degrees (a history sampled more coarsely throughout gets
+    3 x its median step instead: :data:`GAP_MEDIAN_FACTOR`). ``max_rate_deg_s`` = 10 deg/s: above any rate
     a coarse sun-sensor CubeSat keeps (OPS-SAT turns < 1 deg/s in 90 % of its steps; ~1 % of them read above
     10 deg/s: estimator jumps). ``min_frozen_s`` = 30 s: an estimate averaged over 10 s of a moving
     spacecraft does not repeat bit for bit for 3 steps. ``None`` switches a flag off.
