@@ -158,3 +158,36 @@ def test_run_help_states_the_quaternion_convention(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert "scalar first, in GCRF, and rotates body vectors into the frame (v_frame = R(q) v_body)" in text
     assert "--attitude-frame {GCRF,EME2000,TEME,TOD}" in text and "frame_to_body: v_body = R(q) v_frame" in text
+
+
+def test_in_process_history_at_the_telemetrys_own_times():
+    # what `flight-check` does: the OPS-SAT week's attitude, rendered at the photodiode stamps where it is trusted
+    from simcore.environment.telemetry import OPSSAT_TLE, read_opssat_attitude, read_opssat_pd
+    from simcore.pipeline.schedule import plan
+    from simcore.pipeline.store import spec_digest
+    h = read_opssat_attitude()
+    pd = read_opssat_pd()
+    keep = h.trusted(pd.epochs)
+    first_day = np.flatnonzero(keep)[:200]
+    opts = RunOptions(config="tilt0_fov90", tle=str(OPSSAT_TLE), attitude_history=h, epochs=pd.epochs[first_day])
+    p = plan(opts)
+    assert len(p.epochs) == 200 and p.source == "times" and p.notes == (h.summary(),)
+    # the rendered attitude is the history's, in GCRS: the recorded quaternion is EME2000 -> body
+    from simcore.environment import frames
+    from simcore.environment.attitude import quat_to_matrix
+    R_body_from_eme = quat_to_matrix(h.q_frame_at(p.epochs)).transpose(0, 2, 1)
+    np.testing.assert_allclose(p.attitude.R_body_from_gcrs,
+                               R_body_from_eme @ frames.R_between("gcrs", "eme2000", p.epochs), atol=1e-12)
+    # untrusted stamps are left out and counted, never interpolated
+    p2 = plan(RunOptions(tle=str(OPSSAT_TLE), attitude_history=h, epochs=pd.epochs[:400]))
+    left = int((~keep[:400]).sum())
+    assert left > 1 and len(p2.epochs) == 400 - left
+    # the first stamp, 00:34:04, comes 0.529 s before the first attitude sample: outside the span, left out
+    assert p2.notes[1].startswith("left out 1 of 400 epochs outside the attitude history's span")
+    assert p2.notes[2].startswith(f"left out {left - 1} of 399 epochs without a trusted attitude")
+    # the settings digest follows the history's content and the epochs
+    d1 = spec_digest(opts.spec())
+    other = AttitudeHistory(h.epochs, h.q_frame_from_body[:, [0, 1, 3, 2]], frame=h.frame, source=h.source)
+    import dataclasses
+    assert spec_digest(dataclasses.replace(opts, attitude_history=other).spec()) != d1
+    assert spec_digest(dataclasses.replace(opts, epochs=pd.epochs[first_day[:-1]]).spec()) != d1

@@ -43,7 +43,8 @@ from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
-from simcore.pipeline.preflight import REFLECTED_SAMPLES, check_map, check_numbers, check_variant, tle_age_note
+from simcore.pipeline.preflight import (REFLECTED_SAMPLES, check_map, check_numbers, check_variant, map_for_diodes,
+                                       tle_age_note)
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
 from simcore.environment.geometry import compute_geometry, orbital_period_s
 from simcore.pipeline import schedule as _schedule
@@ -150,9 +151,9 @@ class PreparedRun:
         self.epochs = self.geometry.epochs
         self.clouds = None
         if getattr(opts, "clouds", None) is None:
-            self.map = band.resolve_map(opts.reflectivity)
+            self.map = band.resolve_map(map_for_diodes(opts.reflectivity, self.config))
         else:
-            self.clouds = band.cloud_weather(opts.reflectivity, opts.cloud_scale_km)
+            self.clouds = band.cloud_weather(map_for_diodes(opts.reflectivity, self.config), opts.cloud_scale_km)
             self.map = self.clouds.realise(opts.clouds)
         self.check_refine = CHECK_REFINE if self.clouds is None else CHECK_REFINE_CLOUDS
         self.map_refined = self.map.refined(self.check_refine)
@@ -340,7 +341,7 @@ class PreparedRun:
         a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
         s = g.sun_dir_body[sl]
         for k, d in enumerate(cfg.diodes):
-            if not isinstance(d.aperture, CircularWell):
+            if not isinstance(d.aperture, CircularWell) or cfg.body.none:     # no body: the model is exact
                 continue
             p = body_side_normal(d, cfg.body)       # its panel's normal (a diode on a part: the box face it lies beyond)
             # (a diode flat on its panel sees nothing below the panel's plane: never)
@@ -372,7 +373,7 @@ class PreparedRun:
         box = BodyBox.from_config(self.config)
         out = np.zeros(share.shape, bool)
         for k, frame in enumerate(np.asarray(self.config.frames)):
-            model = box_hit(box.positions_m[k], local @ frame, box.half_m).astype(float)
+            model = np.zeros(TH.shape) if box is None else box_hit(box.positions_m[k], local @ frame, box.half_m) * 1.0
             cell = np.isfinite(share[k]) & (share[k] != model)
             out[k] = widen_cells(cell)
         return out
@@ -422,7 +423,7 @@ class PreparedRun:
             v = self.visibility
             vis = DirectionVisibility(v.mask[idx], v.fine[idx], v.half[idx])
         alb = diode_irradiance(*args, direct=False, visibility=vis, **common, box_albedo=box_albedo,
-                               body=BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]),
+                               body=box and BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]),
                                glint=self.glint_on(reflectivity_map))
         res.albedo_w_m2[:, idx] = alb.albedo_w_m2
         for name in ("albedo_mesh_w_m2", "albedo_visibility_error_w_m2", "albedo_box_w_m2"):
@@ -445,7 +446,7 @@ class PreparedRun:
         n, K = sl.stop - sl.start, cfg.n_diodes
         out = np.zeros((n, K), bool)
         idx = [k for k, w in enumerate(cfg.windows) if w is not None]
-        if not idx:
+        if not idx or cfg.body.none:            # no body ([body] none): nothing shades a window
             return out
         dirs, _, ok, _ = self._sun_disc_probes(sl)
         box = BodyBox.from_config(cfg)
@@ -755,7 +756,8 @@ def prepare(opts):
         raise InvalidInputError(f"all {study.config.n_diodes} diodes of {study.config.name} are dead (--dead "
                                 f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
     study.variant = variant
-    study.notes = [n for n in (tle_age_note(study.orbit, study.epochs),) if n] + list(study.plan.notes)
+    study.notes = ([n for n in (tle_age_note(study.orbit, study.epochs),) if n] + list(study.plan.notes)
+                   + list(study.config.notes))
     return study
 
 

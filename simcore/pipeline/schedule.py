@@ -18,7 +18,9 @@ attitude, the history if any, notes), one place for every rule:
   first sample (or 2016-07-02T00:00Z without a history), ``duration`` to the rest of the history's span (or
   one orbit without one). A relative-time history (``t_s`` CSV) carries no date: it needs ``start``.
 
-With a history, epochs outside its recorded span are refused (one line); epochs inside it where the attitude
+With a history, epochs of a regular grid outside its recorded span are refused (one line; explicit epochs
+outside it, e.g. telemetry stamps half a second before the first attitude sample, are left out and counted);
+epochs inside it where the attitude
 is not trusted (gaps, jumps, frozen stretches: :mod:`simcore.environment.history`) are left out and counted
 in a note, never interpolated across. A run at explicit epochs renders exactly those epochs, in one process,
 whatever their spacing; the renderer's random numbers are keyed by the epoch's index in the run, so the
@@ -174,7 +176,14 @@ def plan(opts):
     if history is not None:
         notes.append(history.summary())
         _, inside = history._locate(epochs)
-        if not inside.all():
+        if not inside.all() and source == "times":
+            # explicit epochs (e.g. telemetry stamps) may start before or end after the history: left out, counted
+            notes.append(f"left out {int((~inside).sum())} of {len(epochs)} epochs outside the attitude history's "
+                         f"span {history.epochs.iso()[0]} .. {history.epochs.iso()[-1]}")
+            epochs = epochs[np.flatnonzero(inside)]
+            if len(epochs) == 0:
+                raise InvalidInputError("none of the given epochs lies within the attitude history's span")
+        elif not inside.all():
             k = int(np.flatnonzero(~inside)[0])
             raise InvalidInputError(f"the attitude history {history.source or ''} spans {history.epochs.iso()[0]} .. "
                                     f"{history.epochs.iso()[-1]} but the run needs {epochs[k].iso()[0]} "
