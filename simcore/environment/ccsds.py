@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import erfa
 import numpy as np
 
+from simcore.environment.attitude import norm_outliers
 from simcore.environment.epochs import Epochs
 from simcore.environment.history import AttitudeHistory, read_text
 from simcore.errors import InvalidInputError
@@ -407,14 +408,12 @@ def _check_aem_segment(seg, path):
     if seg.values.shape[1] < 4:
         raise CCSDSError(f"{where}AEM quaternion lines hold an epoch and at least 4 numbers; found "
                          f"{seg.values.shape[1]}")
-    q = seg.values[:, :4]
-    norm = np.linalg.norm(q, axis=1)
-    off = ~(np.abs(norm - 1.0) <= QUATERNION_NORM_TOL)
-    if np.any(off):
-        i = int(np.flatnonzero(off)[0])
-        where_row = _where(path, seg.lines[i])
-        raise CCSDSError(f"{where_row}the quaternion at {seg.epochs.iso()[i]} has norm {norm[i]:.6g}, not 1 within "
-                         f"{QUATERNION_NORM_TOL:g} ({int(off.sum())} such rows); check QUATERNION_TYPE and the columns")
+    norm, off = norm_outliers(seg.values[:, :4], QUATERNION_NORM_TOL)
+    if off.size:
+        i = int(off[0])
+        raise CCSDSError(f"{_where(path, seg.lines[i])}the quaternion at {seg.epochs.iso()[i]} has norm {norm[i]:.6g}, "
+                         f"not 1 within {QUATERNION_NORM_TOL:g} ({off.size} such rows); check QUATERNION_TYPE and the "
+                         "columns")
 
 
 def aem_frames(meta, where=""):
