@@ -31,6 +31,9 @@ def _add_orbit_options(p, ephemeris=False):
     if ephemeris:
         p.add_argument("--orbit", metavar="FILE.oem", help="a CCSDS orbit ephemeris (OEM, KVN or XML) instead of a "
                        "TLE; without --start/--duration the run covers its span (docs/ccsds.md)")
+        p.add_argument("--eop", nargs=3, type=float, metavar=("DUT1_S", "XP_ARCSEC", "YP_ARCSEC"),
+                       help="Earth orientation from IERS Bulletin A (UT1 - UTC, pole x, y); default 0: Earth-fixed "
+                            "positions (an ITRF ephemeris) are then up to ~400 m off")
     p.add_argument("--start", default=None, help="first epoch, ISO-8601 UTC (default: 2016-07-02T00:00:00Z, or "
                                                  "the first sample of an --attitude history with absolute times"
                                                  + (", or the first epoch of an --orbit ephemeris)" if ephemeris else ")"))
@@ -159,7 +162,7 @@ def run_options(args):
     from simcore.pipeline.run import RunOptions
     samples = args.samples
     return RunOptions(
-        config=args.config, tle=args.tle, satellite=args.satellite, orbit_file=args.orbit, start=args.start,
+        config=args.config, tle=args.tle, satellite=args.satellite, orbit_file=args.orbit, eop=args.eop, start=args.start,
         duration_s=args.duration,
         step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude, dynamics=args.dynamics,
         attitude_frame=args.attitude_frame, attitude_direction=args.attitude_direction, times_file=args.times,

@@ -170,8 +170,8 @@ def test_span_is_enforced_and_gaps_between_segments_are_honoured(tmp_path):
         eph.propagate(Epochs.from_any("2016-07-01T23:59:00Z"))
 
 
-def _one_line_error(path, match, capsys, tmp_path):
-    rc = main(["run", "--orbit", str(path), "-o", str(tmp_path / "never.nc")])
+def _one_line_error(path, match, capsys, tmp_path, extra=()):
+    rc = main(["run", "--orbit", str(path), "-o", str(tmp_path / "never.nc"), *extra])
     err = capsys.readouterr().err
     assert rc == 2, err
     assert err.count("\n") == 1 and match in err, err
@@ -239,3 +239,20 @@ def test_period_of_an_ephemeris_is_the_inertial_keplerian_one(tmp_path, frame):
         r, v = frames.rv_itrs_from_teme(r_teme, v_teme, ep)
     path = _kvn(tmp_path / "p.oem", ccsds.format_epochs(ep), np.hstack([r, v]) / 1e3, frame=frame)
     assert EphemerisOrbit.from_file(path).period_s == pytest.approx(2 * math.pi / N_RAD_S, rel=1e-9)
+
+
+def test_run_geometry_takes_earth_orientation_for_an_itrf_ephemeris(tmp_path, capsys):
+    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.schedule import study_geometry
+    path = tmp_path / "itrf.oem"
+    write_orbit_oem(path, Orbit.default(), Epochs.range("2016-07-01T23:55:00Z", 1200, 60.0), frame="ITRF")
+    kw = dict(orbit_file=str(path), start=START, duration_s=300, step_s=60.0)
+    _, _, g0 = study_geometry(RunOptions(**kw))
+    _, _, g1 = study_geometry(RunOptions(eop=(0.3, 0.0, 0.0), **kw))
+    # the Earth turned omega x 0.3 s further: the inertial position moves by that times the distance from the axis
+    rho = np.linalg.norm(g0.r_sat_ecef_m[:, :2], axis=1)
+    np.testing.assert_allclose(np.linalg.norm(g1.r_sat_gcrs_m - g0.r_sat_gcrs_m, axis=1),
+                               7.292115146706979e-5 * 0.3 * rho, rtol=1e-3)
+    assert RunOptions(**kw).spec() != RunOptions(eop=(0.3, 0.0, 0.0), **kw).spec()
+    assert "eop" not in RunOptions(**kw).spec()
+    _one_line_error(path, "UT1 - UTC stays within 0.9 s", capsys, tmp_path, ["--eop", "2", "0", "0"])

@@ -102,6 +102,7 @@ class RunOptions:
     reflectivity: str = "toms2005"
     clouds: int = None                 # cloud-weather seed (simcore.environment.clouds); None: the map as it is
     cloud_scale_km: float = None       # the clouds' correlation length (None: clouds.DEFAULT_SCALE_KM)
+    eop: tuple = None                  # Earth orientation (UT1 - UTC s, x_p arcsec, y_p arcsec), IERS Bulletin A; None: 0
     glint: float = None                # sea sun glint: wind speed m/s at 12.5 m (simcore.radiometry.glint); None: none
     sun_disc: bool = True              # finite solar disc: penumbra
     e_sun_w_m2: float = TSI_W_M2        # solar irradiance at 1 AU (the thesis: E_SUN_W_M2 = 1366.1)
@@ -125,6 +126,10 @@ class RunOptions:
             d["cloud_scale_km"] = CLOUD_SCALE_KM
         if d["glint"] is None:          # runs without glint keep the settings digest they always had
             d.pop("glint")
+        if d["eop"] is None:            # runs without Earth-orientation data keep the digest they always had
+            d.pop("eop")
+        else:
+            d["eop"] = [float(x) for x in d["eop"]]
         if d["reflected_samples"] == REFLECTED_SAMPLES:     # runs at the default keep the digest they always had
             d.pop("reflected_samples")
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
@@ -145,9 +150,10 @@ class PreparedRun:
         self.opts = opts
         self.config = SatelliteConfig.load(opts.config, dead=list(opts.dead),
                                            extra_flat_diodes=True if opts.extra_flat_diodes else None)
+        eop = _schedule.eop_kwargs(opts)
         self.plan = _schedule.plan(opts)
         self.orbit, self.attitude = self.plan.orbit, self.plan.attitude
-        self.geometry = compute_geometry(self.orbit, self.plan.epochs, self.attitude)
+        self.geometry = compute_geometry(self.orbit, self.plan.epochs, self.attitude, **eop)
         self.epochs = self.geometry.epochs
         self.clouds = None
         if getattr(opts, "clouds", None) is None:

@@ -218,10 +218,29 @@ def study_orbit(opts):
     return Orbit.default(opts.satellite) if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
 
 
+def eop_kwargs(opts):
+    """Return compute_geometry's Earth-orientation keywords (dut1_s, xp_rad, yp_rad) of ``opts.eop`` = (UT1 - UTC in
+    s, x_p and y_p in arcsec; IERS Bulletin A), all zero without it; raise one line for values out of range."""
+    eop = getattr(opts, "eop", None)
+    if eop is None:
+        return {}
+    try:
+        dut1, xp, yp = (float(x) for x in eop)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"--eop needs three numbers: UT1 - UTC (s), x_p and y_p (arcsec); got {eop!r}") from None
+    if not (np.isfinite([dut1, xp, yp]).all() and abs(dut1) <= 0.9 and abs(xp) <= 1.0 and abs(yp) <= 1.0):
+        raise InvalidInputError(f"--eop {dut1:g} {xp:g} {yp:g}: UT1 - UTC stays within 0.9 s and the pole within 1 "
+                                "arcsec (IERS Bulletin A gives both); check the units (seconds, arcseconds)")
+    arcsec = np.pi / 180 / 3600
+    return {"dut1_s": dut1, "xp_rad": xp * arcsec, "yp_rad": yp * arcsec}
+
+
 def study_geometry(opts):
-    """Return (orbit, attitude, geometry) of the orbit, epochs and attitude that ``opts`` describe (:func:`plan`)."""
+    """Return (orbit, attitude, geometry) of the orbit, epochs and attitude that ``opts`` describe (:func:`plan`),
+    with the Earth orientation of ``opts.eop`` (:func:`eop_kwargs`)."""
+    eop = eop_kwargs(opts)
     p = plan(opts)
-    return p.orbit, p.attitude, compute_geometry(p.orbit, p.epochs, p.attitude)
+    return p.orbit, p.attitude, compute_geometry(p.orbit, p.epochs, p.attitude, **eop)
 
 
 _NEW_FIELDS = ("times_file", "epochs", "attitude_history", "attitude_frame", "attitude_direction")
