@@ -31,6 +31,7 @@ from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
 from simcore.shapes.window import INDEX_RANGE, Window
 from simcore.errors import InvalidInputError
+from scenes.declared import ConfigError, body_none as _flag, diode_type, unit_normal
 from scenes.materials import DEFAULT as DEFAULT_MATERIAL, check_material
 
 CONFIG_DIR = Path(__file__).resolve().parent
@@ -39,7 +40,8 @@ MM = 1e-3
 # Body defaults: a 2U CubeSat envelope (CubeSat Design Specification rev. 14:
 # 100 x 100 x 227 mm, 8.5 mm square rails) and the NUTS launch-pod clearance
 # (thesis sec. 4.2.1: 9 mm from the panel surface to the pod interior).
-BODY_DEFAULTS = {"size_mm": [100.0, 100.0, 227.0], "rail_mm": 8.5, "clearance_mm": 9.0, "material": "black"}
+BODY_DEFAULTS = {"size_mm": [100.0, 100.0, 227.0], "rail_mm": 8.5, "clearance_mm": 9.0, "material": "black",
+                 "none": False}
 MOUNT_DEFAULTS = {"wall_mm": 0.5, "floor_mm": 0.5, "base_mm": 0.5, "material": "black"}
 LAYOUT_DEFAULTS = {"pattern": None, "tilt_deg": None, "fov_deg": None, "extra_flat_diodes": False,
                    "triangle_mm": [22.0, 40.0], "extra_offset_mm": 25.0, "window": None}
@@ -50,7 +52,7 @@ ON_SURFACE_TOLERANCE_M = 0.5e-3
 WELL_KEYS = ("height_mm", "opening_mm", "chamfer_mm", "chamfer_deg", "shape", "diameter_mm")
 ROUND_WELL_KEYS = ("shape", "height_mm", "diameter_mm")
 WELL_REQUIRED = ("height_mm", "opening_mm")
-TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part")
+TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part", "diode_type")
 PART_KEYS = ("name", "file", "unit", "box_mm", "translate_mm", "rotate_deg", "hinge", "material")
 HINGE_KEYS = ("axis", "point_mm", "angle_deg")
 UNITS = {"mm": 1e-3, "m": 1.0}
@@ -65,10 +67,6 @@ PANELS = ("+x", "+y", "-x", "-y", "+z", "-z")
 _SIDE_PANELS = (("+x", 0.0), ("+y", 90.0), ("-x", 180.0), ("-y", 270.0))
 _TRIANGLE = {"+x": ((-1, -1), (0, +1), (+1, -1)), "-x": ((-1, -1), (0, +1), (+1, -1)),
              "+y": ((-1, +1), (0, -1), (+1, +1)), "-y": ((-1, +1), (0, -1), (+1, +1))}
-
-
-class ConfigError(InvalidInputError):
-    """A satellite configuration that cannot be built; the message says what to change."""
 
 
 def list_configs():
@@ -140,6 +138,7 @@ class Body:
     rail_m: float
     clearance_m: float
     material: object = DEFAULT_MATERIAL  # scenes.materials: a name or a Mitsuba BSDF dict
+    none: bool = False    # [body] none = true: the panels place the diodes, but no body is rendered or shadows
 
     def panel_centre_m(self, panel):
         """Return the centre of a panel's outer surface (body frame, m)."""
@@ -346,6 +345,7 @@ class MountedDiode:
     part: str = None  # the [[part]] it sits on (instead of a panel)
     surface_normal_body: np.ndarray = None   # on a part: the outward normal of the part's surface under it
     window: Window = None  # a cover glass / filter over the diode (simcore.shapes.window), or None
+    note: str = ""         # e.g. a normal written to a few digits, normalised (scenes/declared.py)
 
     def mount_corners_m(self, mount):
         """Return (floor_bottom (4, 3), wall_top (4, 3)) outer corners of the mount (body frame, m).
@@ -530,11 +530,7 @@ def _build_part_diode(where, table, part, mount, aperture):
     if "normal" not in table:
         raise ConfigError(f"{where}: give normal = [x, y, z], the diode's normal in part {part.name!r}'s own "
                           "coordinates (as in its file or box)")
-    n = _vector3(table["normal"], f"{where} normal")
-    if abs(np.linalg.norm(n) - 1.0) > 1e-5:
-        raise ConfigError(f"{where}: normal {n.tolist()} is not a unit vector (norm {np.linalg.norm(n):.6f}); "
-                          "normalise it")
-    n = n / np.linalg.norm(n)
+    n, note = unit_normal(_vector3(table["normal"], f"{where} normal"), where)
     at = _vector3(table.get("at_mm"), f"{where} at_mm (on a part: [x, y, z] in mm, the part's own coordinates)") * MM
     tri = part.local_vertices_m[part.faces]
     dist, unit = _point_triangle_distances(at, tri)
@@ -582,22 +578,20 @@ def _build_diode(index, table, body, mount, parts=()):
             arr.flags.writeable = False
         return MountedDiode(index=index, name=str(table.get("name", f"d{index}")), normal_body=frame[2],
                             frame_body=frame, position_body_m=centre, aperture=aperture, fov_deg=fov, panel=None,
-                            at_m=at, part=part.name, surface_normal_body=surface, window=window)
+                            at_m=at, part=part.name, surface_normal_body=surface, window=window,
+                            note=unit_normal(_vector3(table["normal"], f"{where} normal"), where)[1])
     panel = table.get("panel")
     if panel is None:
         raise ConfigError(f"{where}: give the mounting panel, one of {', '.join(PANELS)} (or part = a [[part]]'s name)")
     p, _, _ = panel_axes(panel)
+    note = ""
     if "normal" in table:
         if "az_deg" in table or "el_deg" in table:
             raise ConfigError(f"{where}: give either 'normal' or 'az_deg'/'el_deg', not both")
         n = np.asarray(table["normal"], dtype=float)
         if n.shape != (3,) or not np.all(np.isfinite(n)):
             raise ConfigError(f"{where}: normal must be 3 finite numbers (body frame), got {table['normal']!r}")
-        norm = float(np.linalg.norm(n))
-        if abs(norm - 1.0) > 1e-5:
-            raise ConfigError(f"{where}: normal {n.tolist()} is not a unit vector (norm {norm:.6f}); "
-                              "normalise it or give az_deg/el_deg")
-        n = n / norm
+        n, note = unit_normal(n, where)
     elif "az_deg" in table and "el_deg" in table:
         n = normal_from_az_el(float(table["az_deg"]), float(table["el_deg"]))
     else:
@@ -619,7 +613,8 @@ def _build_diode(index, table, body, mount, parts=()):
     for arr in (n, frame, at_m, centre):
         arr.flags.writeable = False
     return MountedDiode(index=index, name=str(table.get("name", f"d{index}")), normal_body=n, frame_body=frame,
-                 position_body_m=centre, aperture=aperture, fov_deg=fov, panel=panel, at_m=at_m, window=window)
+                 position_body_m=centre, aperture=aperture, fov_deg=fov, panel=panel, at_m=at_m, window=window,
+                 note=note)
 
 
 def _window_for(table, aperture, where):
@@ -783,6 +778,12 @@ class SatelliteConfig:
     layout: dict = field(default_factory=dict)
     source: str = ""
     parts: tuple = ()
+    diode_type: str = None   # the diodes' part (band of --map band), "unknown", or None: BPW34FS (declared.py)
+
+    @property
+    def notes(self):
+        """Return the notes of loading this configuration (normals normalised, ...): the run prints and stores them."""
+        return tuple(d.note for d in self.diodes if d.note)
 
     # --- construction -------------------------------------------------------------------------
     @classmethod
@@ -823,7 +824,7 @@ class SatelliteConfig:
             raise ConfigError(f"[body] size_mm must be three positive lengths (x, y, z) in mm, got {bd['size_mm']!r}")
         body = Body(size_m=tuple(size * MM), rail_m=float(bd["rail_mm"]) * MM,
                     clearance_m=float(bd["clearance_mm"]) * MM,
-                    material=check_material(bd["material"], f"{where} [body] material"))
+                    material=check_material(bd["material"], f"{where} [body] material"), none=_flag(bd["none"], where))
         md = _merged(data.get("mount"), MOUNT_DEFAULTS, "mount")
         if not (md["wall_mm"] > 0 and md["floor_mm"] > 0 and md["base_mm"] >= 0):
             raise ConfigError(f"[mount] wall_mm and floor_mm must be > 0 and base_mm >= 0, got {md}")
@@ -855,7 +856,7 @@ class SatelliteConfig:
         _validate_parts(parts, diodes)
         cfg = cls(name=str(data.get("name", "custom")), description=str(data.get("description", "")), body=body,
                   mount=mount, diodes=diodes, dead=np.zeros(len(diodes), bool), layout=layout, source=source,
-                  parts=parts)
+                  parts=parts, diode_type=diode_type(data.get("diode_type"), where))
         return cfg.with_dead(data.get("dead", []) if dead is None else dead)
 
     def with_dead(self, indices):

@@ -25,12 +25,20 @@ def _output_folder(folder, option):
     return folder
 
 
-def _add_orbit_options(p):
+def _add_orbit_options(p, ephemeris=False):
     p.add_argument("--tle", metavar="FILE", help=DEFAULT_TLE_HELP)
     p.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
-    p.add_argument("--start", default="2016-07-02T00:00:00Z", help="first epoch, ISO-8601 UTC (default: %(default)s)")
+    if ephemeris:
+        p.add_argument("--orbit", metavar="FILE.oem", help="a CCSDS orbit ephemeris (OEM, KVN or XML) instead of a "
+                       "TLE; without --start/--duration the run covers its span (docs/ccsds.md)")
+        p.add_argument("--eop", nargs=3, type=float, metavar=("DUT1_S", "XP_ARCSEC", "YP_ARCSEC"),
+                       help="Earth orientation from IERS Bulletin A (UT1 - UTC, pole x, y); default 0: Earth-fixed "
+                            "positions (an ITRF ephemeris) are then up to ~400 m off")
+    p.add_argument("--start", default=None, help="first epoch, ISO-8601 UTC (default: 2016-07-02T00:00:00Z, or "
+                                                 "the first sample of an --attitude history with absolute times"
+                                                 + (", or the first epoch of an --orbit ephemeris)" if ephemeris else ")"))
     p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="seconds to simulate (default: one orbital period)")
+                   help="seconds to simulate (default: one orbital period, or the rest of an --attitude history)")
     p.add_argument("--step", type=float, default=1.0, metavar="S", help="seconds between epochs (default: %(default)s)")
     p.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S",
                    help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
@@ -88,7 +96,8 @@ def _add_render_options(p):
     p.add_argument("--config", default="tilt20_fov70", metavar="NAME_OR_TOML",
                    help="satellite configuration: a shipped name (tilt0_fov90, tilt{20,25,30}_fov{70,75}) "
                         "or a .toml file (scenes/FORMAT.md); default %(default)s")
-    p.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz (overrides the tumble)")
+    from simcore.pipeline.run_args import add_attitude_options
+    add_attitude_options(p)
     p.add_argument("--dynamics", metavar="INERTIA",
                    help="torque-free Euler dynamics instead of the constant tumble, starting at --spin-rate about "
                         "the body diagonal; INERTIA in kg m^2: 'IXX,IYY,IZZ' or 'IXX,IYY,IZZ,IXY,IXZ,IYZ'")
@@ -153,8 +162,10 @@ def run_options(args):
     from simcore.pipeline.run import RunOptions
     samples = args.samples
     return RunOptions(
-        config=args.config, tle=args.tle, satellite=args.satellite, start=args.start, duration_s=args.duration,
+        config=args.config, tle=args.tle, satellite=args.satellite, orbit_file=args.orbit, eop=args.eop, start=args.start,
+        duration_s=args.duration,
         step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude, dynamics=args.dynamics,
+        attitude_frame=args.attitude_frame, attitude_direction=args.attitude_direction, times_file=args.times,
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
         reflected_samples=args.reflected_samples, dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,
@@ -315,6 +326,13 @@ def cmd_view(args):
                  spp=args.spp, seed=args.seed)
     print(json.dumps({"config": cfg.name, "time": ve.epoch_iso, "picture": str(args.output)}) if args.json
           else f"picture: {args.output}")
+    return 0
+
+
+def cmd_export(args):
+    """``sunsim export RUN.nc --format csv|aem|oem|basilisk``: readings, attitude, orbit or Basilisk values."""
+    from simcore.pipeline.export import export
+    print(export(args.run, args.format, args.output, diode=args.diode, noise=args.noise, seed=args.seed))
     return 0
 
 
@@ -737,7 +755,7 @@ def build_parser():
 
     r = sub.add_parser("run", help="the main job: render a study (default: ESTCube-1, 2016-07-02, tilt20_fov70, "
                                    "one orbit at 1 s), check it, write netCDF")
-    _add_orbit_options(r)
+    _add_orbit_options(r, ephemeris=True)
     _add_render_options(r)
     r.add_argument("--fail-on-check", dest="fail_on_check", action="store_true", default=True,
                    help="exit status 1 when the analytic check fails (the default; kept for older scripts)")
@@ -806,6 +824,17 @@ def build_parser():
                     help="recompute the analytic model with this sunsim first (keeps the rendered numbers)")
     va.add_argument("--json", action="store_true")
     va.set_defaults(func=cmd_validate)
+
+    ex = sub.add_parser("export", help="a run's readings (csv: irradiance, photocurrent, ADC counts), attitude (aem), "
+                                       "orbit (oem) or Basilisk CSS values (basilisk) to a file (docs/ccsds.md)")
+    ex.add_argument("run", metavar="RUN.nc")
+    ex.add_argument("--format", required=True, choices=["csv", "aem", "oem", "basilisk"])
+    ex.add_argument("-o", "--output", metavar="FILE", help="default: beside RUN.nc (_readings.csv, .aem, .oem, "
+                    "_basilisk.csv)")
+    ex.add_argument("--diode", default="BPW34FS", help="csv: the photodiode part of the sensor chain (default %(default)s)")
+    ex.add_argument("--noise", action="store_true", help="csv: shot and Johnson noise in the sensor chain")
+    ex.add_argument("--seed", type=int, default=0, help="csv: seed of the noise (default %(default)s)")
+    ex.set_defaults(func=cmd_export)
 
     e = sub.add_parser("estimate", help="sensor chain + the thesis' estimators on a run file: error table")
     e.add_argument("run", metavar="RUN.nc")

@@ -115,8 +115,9 @@ def compute_geometry(orbit=None, epochs=None, attitude=None, *, dut1_s=0.0, xp_r
 
 
 def orbital_period_s(orbit):
-    """Return the anomalistic period (s) from the TLE's mean motion."""
-    return 2 * np.pi / orbit.satrec.no_kozai * 60.0
+    """Return the orbit's period (s): a TLE's anomalistic period from its mean motion, an ephemeris's Keplerian
+    period of its first state (``orbit.period_s``)."""
+    return orbit.period_s
 
 
 def eclipse_events(geometry):

@@ -226,6 +226,11 @@ class Orbit:
         return int(self._satrec.satnum)
 
     @property
+    def period_s(self):
+        """Return the anomalistic period (s) from the TLE's mean motion."""
+        return 2 * np.pi / self._satrec.no_kozai * 60.0
+
+    @property
     def epoch(self):
         """Return the TLE epoch (UTC) as a one-element :class:`Epochs`."""
         return Epochs(self._satrec.jdsatepoch, self._satrec.jdsatepochF)
