@@ -42,6 +42,10 @@ The chain
   GCRS velocities are ``R_gcrs_from_teme @ v_teme``: the precession-nutation
   rate (~1e-11 rad/s) would add < 1e-4 m/s.
 
+* EME2000 (J2000, mean equator and equinox of J2000.0) <- GCRS: the IAU 2006 frame bias, ``erfa.bp06``'s
+  RB (23 mas); TOD (true equator and equinox of date) <- GCRS: ``erfa.pnm06a`` (bias-precession-nutation).
+  Recorded attitudes may refer to either (:mod:`simcore.environment.history`).
+
 Speed: the slowly varying part ``S(TT)`` (precession-nutation, bias and
 equation of the equinoxes, ~1400 nutation terms per evaluation) is computed
 with erfa on a coarse grid (``PN_GRID_STEP_S`` = 1 h) and interpolated with a
@@ -78,8 +82,9 @@ from simcore.environment.epochs import Epochs
 PN_GRID_STEP_S = 3600.0      # coarse grid for the precession-nutation part
 _SECONDS_PER_DAY = 86400.0
 
-FRAMES = ("teme", "gcrs", "itrs")
-_ALIASES = {"teme": "teme", "gcrs": "gcrs", "itrs": "itrs", "ecef": "itrs"}
+FRAMES = ("teme", "gcrs", "itrs", "eme2000", "tod")
+_ALIASES = {"teme": "teme", "gcrs": "gcrs", "gcrf": "gcrs", "itrs": "itrs", "ecef": "itrs",
+            "eme2000": "eme2000", "j2000": "eme2000", "tod": "tod"}
 
 
 # ---------------------------------------------------------------------------
@@ -256,6 +261,50 @@ def R_gcrs_from_itrs(epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0, *, exact=False)
     return _T(R_itrs_from_gcrs(epochs, dut1_s, xp_rad, yp_rad, exact=exact))
 
 
+def R_eme2000_from_gcrs(epochs):
+    """Return (N, 3, 3) the frame bias GCRS -> EME2000 (mean equator and equinox of J2000.0), ``erfa.bp06``'s RB.
+
+    The IAU 2006 frame bias: a constant rotation of ~23 mas (0.1 urad, 0.7 m at 7000 km) about axes near the
+    x and y axes plus the 14.6 mas equinox offset (SOFA ``iauBp06``, note 5: "RB transforms vectors from GCRS
+    to mean J2000.0 by applying frame bias"). The same for every epoch; shaped (N, 3, 3) like the others.
+    """
+    epochs = _epochs(epochs)
+    rb, _, _ = erfa.bp06(2451545.0, 0.0)
+    return np.broadcast_to(rb, (len(epochs), 3, 3)).copy()
+
+
+def R_tod_from_gcrs(epochs, *, exact=False):
+    """Return (N, 3, 3) rotations GCRS -> TOD (true equator and true equinox of date): ``erfa.pnm06a``.
+
+    The classical bias-precession-nutation matrix, IAU 2006/2000A (SOFA ``iauPnm06a``): v_tod = NPB v_gcrs.
+    Interpolated from the 1-h grid of the module docstring unless ``exact=True``.
+    """
+    epochs = _epochs(epochs)
+    tt1, tt2 = epochs.tt()
+
+    def npb(a, b):
+        with np.errstate(all="ignore"):
+            return erfa.pnm06a(a, b)
+    if exact:
+        return npb(tt1, tt2)
+    return _orthonormalise(smooth_on_grid(npb, tt1, tt2, PN_GRID_STEP_S))
+
+
+def R_gcrs_from(frame, epochs):
+    """Return (N, 3, 3) rotations from the inertial ``frame`` ('gcrs', 'eme2000'/'j2000', 'teme', 'tod') to GCRS."""
+    key = _frame_name(frame)
+    epochs = _epochs(epochs)
+    if key == "gcrs":
+        return np.broadcast_to(np.eye(3), (len(epochs), 3, 3)).copy()
+    if key == "eme2000":
+        return _T(R_eme2000_from_gcrs(epochs))
+    if key == "tod":
+        return _T(R_tod_from_gcrs(epochs))
+    if key == "teme":
+        return R_gcrs_from_teme(epochs)
+    raise ValueError(f"{frame!r} is not an inertial frame; give 'gcrs', 'eme2000', 'teme' or 'tod'")
+
+
 # ---------------------------------------------------------------------------
 # position + velocity
 def _as_n3(name, a, n):
@@ -322,12 +371,13 @@ def _frame_name(name):
     key = str(name).strip().lower()
     if key not in _ALIASES:
         raise ValueError(f"unknown frame {name!r}; valid frames are 'teme', 'gcrs', 'itrs' "
-                         "(alias 'ecef')")
+                         "(alias 'ecef'), 'eme2000' (alias 'j2000'), 'tod'; 'gcrf' means 'gcrs'")
     return _ALIASES[key]
 
 
 def R_between(from_frame, to_frame, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0):
-    """Return (N, 3, 3) rotations ``from_frame`` -> ``to_frame`` ('teme', 'gcrs', 'itrs'/'ecef')."""
+    """Return (N, 3, 3) rotations ``from_frame`` -> ``to_frame`` ('teme', 'gcrs', 'itrs'/'ecef', 'eme2000'/'j2000',
+    'tod'); pairs with EME2000 or TOD go through GCRS."""
     a, b = _frame_name(from_frame), _frame_name(to_frame)
     epochs = _epochs(epochs)
     eop = dict(dut1_s=dut1_s, xp_rad=xp_rad, yp_rad=yp_rad)
@@ -342,13 +392,18 @@ def R_between(from_frame, to_frame, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0):
         ("gcrs", "itrs"): lambda: R_itrs_from_gcrs(epochs, **eop),
         ("itrs", "gcrs"): lambda: R_gcrs_from_itrs(epochs, **eop),
     }
-    return table[(a, b)]()
+    if (a, b) in table:
+        return table[(a, b)]()
+    _eop(len(epochs), dut1_s, xp_rad, yp_rad)
+    to_gcrs = R_gcrs_from(a, epochs) if a != "itrs" else R_gcrs_from_itrs(epochs, **eop)
+    from_gcrs = _T(R_gcrs_from(b, epochs)) if b != "itrs" else R_itrs_from_gcrs(epochs, **eop)
+    return from_gcrs @ to_gcrs
 
 
 def rotate(vectors, from_frame, to_frame, epochs, dut1_s=0.0, xp_rad=0.0, yp_rad=0.0):
     """Return ``vectors`` (N, 3) (or (3,) broadcast to every epoch) rotated from ``from_frame`` to ``to_frame``.
 
-    Frames: 'teme', 'gcrs', 'itrs' (alias 'ecef'). This is a pure rotation
+    Frames: 'teme', 'gcrs', 'itrs' (alias 'ecef'), 'eme2000' (alias 'j2000'), 'tod'. This is a pure rotation
     (positions, directions); a velocity into or out of ITRS also needs the
     Earth-rotation term: use :func:`rv_itrs_from_teme`.
     """
