@@ -405,7 +405,8 @@ PANEL_AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 
 def fit_normals(telemetry, tle, mounts, reflectivity=DEFAULT_MAP, iterations=3, albedo=True):
     """Return ({name: normal}, {name: info}) fitted on the telemetry by the cosine law
     (:func:`simcore.radiometry.normal_fit.fit_normal`: ``reading - extra ~ scale * normal . sun``, soft-L1) on the
-    fully sunlit samples reading >= :data:`FIT_MIN_READING`. With ``albedo``, ``extra`` is the Earth's albedo on
+    fully sunlit samples where ``reading - extra`` >= :data:`FIT_MIN_READING` (the direct Sun clearly in front:
+    near the Earth a diode facing it reads up to ~0.2 of albedo alone). With ``albedo``, ``extra`` is the Earth's albedo on
     ``reflectivity`` seen by a plain cosine diode of the current normal (the analytic model; iterated from the
     mount's panel axis, the albedo depending on the normal only weakly); without, the direct Sun alone.
     A fit off its panel by more than FIT_MAX_OFF_AXIS_DEG or worse than FIT_MAX_RESIDUAL keeps the panel's axis
@@ -423,11 +424,12 @@ def fit_normals(telemetry, tle, mounts, reflectivity=DEFAULT_MAP, iterations=3, 
         m = telemetry.readings[name]
         axis = np.array(PANEL_AXES[mounts[name].panel], float)
         n = axis
-        mask = (lit >= 1.0) & np.isfinite(m) & (m >= FIT_MIN_READING)
         extra = np.zeros(len(m))
         for _ in range(iterations if albedo else 1):
             if albedo:
                 extra = plain_cosine(g, [n], refl)[1][:, 0]
+            # the direct Sun's share clearly positive (the linear cosine law holds): the reading less the albedo
+            mask = (lit >= 1.0) & np.isfinite(m) & (m - extra >= FIT_MIN_READING)
             fit = fit_normal(g.sun_dir_body, m - extra, mask)
             n = fit.normal
         off = float(np.degrees(np.arccos(np.clip(n @ axis, -1.0, 1.0))))

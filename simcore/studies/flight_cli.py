@@ -70,6 +70,9 @@ def main(args):
         path = write_page(args.page)
         print(f"sunsim flight-check: page {path}")
         return 0
+    if args.fit and (args.pd or args.attitude or args.tle):
+        raise InvalidInputError("--fit calibrates on the shipped telemetry only (the 2020 week and the 2021 logs); "
+                                "leave out --pd/--attitude/--tle (they are for testing the prediction)")
     sat, pd, attitude, tle, scene = _paths(args)
     if args.fit:
         return _fit(args, sat, pd, attitude, tle, scene)
@@ -123,9 +126,6 @@ def _print(out):
 def _fit(args, sat, pd, attitude, tle, scene):
     """Fit the normals on the shipped data only, write the scene's diode block, print the fit's residuals."""
     from simcore.studies import flight as F
-    if args.pd or args.attitude or args.tle:
-        raise InvalidInputError("--fit calibrates on the shipped telemetry only (the 2020 week and the 2021 logs); "
-                                "leave out --pd/--attitude/--tle (they are for testing the prediction)")
     week = F.load_telemetry(pd, attitude)
     normals, info = F.fit_normals(week, tle, sat.mounts, args.map)
     logs = F.merge_logs([F.load_telemetry(p) for p in sat.logs])
