@@ -56,6 +56,13 @@ def _summary(measured, predicted, cos, use):
             "bins": bins}
 
 
+def _shown(path):
+    """Return ``path`` relative to the repository where it lies inside it (the page names no machine's folders)."""
+    from simcore.studies.flight import REPO
+    p = os.path.abspath(str(path))
+    return os.path.relpath(p, REPO) if p.startswith(str(REPO) + os.sep) else str(path)
+
+
 def run_study(folder, sat, pd, attitude, tle, scene, *, runs="runs/flight-check", log=None):
     """Render every model on the telemetry, compute the uncertainty estimates, write ``folder/results.json`` and
     ``folder/samples.npz``; return the results file's path."""
@@ -72,7 +79,7 @@ def run_study(folder, sat, pd, attitude, tle, scene, *, runs="runs/flight-check"
         log(f"flight-check study: rendering {label}")
         pred = F.predict(tel, scene, tle, key, clouds=clouds, folder=runs, log=log)
         tag = key if clouds is None else f"{key}+clouds{clouds}"
-        checks[tag] = {"pass": bool(pred.check.get("pass", False)), "run": pred.run_path}
+        checks[tag] = {"pass": bool(pred.check.get("pass", False)), "run": _shown(pred.run_path)}
         sunlit = pred.illumination >= 1.0
         if default is None or key == F.DEFAULT_MAP and clouds is None:
             default = pred
@@ -91,7 +98,8 @@ def run_study(folder, sat, pd, attitude, tle, scene, *, runs="runs/flight-check"
             models[name][tag] = {"label": f"+ albedo, {label}",
                                  **_summary(m, pred.direct[:, k] + pred.albedo[:, k], cos, use)}
             models[name][tag + "+reflections"] = {"label": f"+ albedo, {label}, + reflections",
-                                                  **_summary(m, pred.total[:, k], cos, use)}
+                                                  **_summary(m, pred.total[:, k], cos, use),
+                                                  "reflected_max": round(float(np.max(pred.reflected[use, k])), 6)}
             arrays[f"{name}/{tag}"] = pred.total[:, k]
     pred = default
     uni = {name: models[name]["uniform"]["albedo"] for name in names}
@@ -102,7 +110,7 @@ def run_study(folder, sat, pd, attitude, tle, scene, *, runs="runs/flight-check"
     results = {
         "title": "OPS-SAT photodiodes: sunsim's prediction against flight telemetry",
         "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        "inputs": {"pd": str(pd), "attitude": str(attitude), "tle": str(tle), "scene": str(scene)},
+        "inputs": {k: _shown(v) for k, v in (("pd", pd), ("attitude", attitude), ("tle", tle), ("scene", scene))},
         "samples": F.compare(tel, pred)["samples"],
         "normals": {name: [round(float(x), 6) for x in pred.normals[k]] for k, name in enumerate(names)},
         "bin_edges": list(F.BIN_EDGES),
@@ -134,11 +142,11 @@ def _analytic(tel, tle, normals, *, attitude=None, shift_s=0.0, reflectivity="ce
 
 def _perturbed(att, sigma_deg, seed):
     """Return ``att`` turned by a random rotation per epoch: rotation vector ~ N(0, sigma^2) per body axis."""
-    from simcore.environment.attitude import Attitude, axis_angle_to_quat, quat_multiply
+    from simcore.environment.attitude import Attitude, quat_multiply
     rng = np.random.default_rng(seed)
-    v = rng.normal(0.0, np.radians(sigma_deg), (len(att), 3))
+    v = rng.normal(0.0, np.radians(sigma_deg), (len(att.q_gcrs_from_body), 3))
     ang = np.linalg.norm(v, axis=1)
-    dq = np.stack([axis_angle_to_quat(v[i] / ang[i], ang[i]) for i in range(len(att))])
+    dq = np.concatenate([np.cos(ang / 2)[:, None], np.sin(ang / 2)[:, None] * v / ang[:, None]], axis=1)
     return Attitude(quat_multiply(att.q_gcrs_from_body, dq))
 
 
@@ -341,7 +349,29 @@ def render_page(results, marked=False):
                      f"{V(f'models.{name}.uniform.albedo', '{:g}')}, fitted on these data). With the Sun behind the "
                      f"diode the median residual goes from {V(f'models.{name}.direct.sun_behind_median_residual')} "
                      f"(direct only: the albedo the data show) to {V(f'models.{name}.{best}.sun_behind_median_residual')}.")
+    for name in names:
+        m = results["models"][name]
+        clouds = [t for t in m if "clouds" in t and t.endswith("+reflections")]
+        cvals = [m[t]["median_abs_residual"] for t in clouds]
+        lo, hi = clouds[int(np.argmin(cvals))], clouds[int(np.argmax(cvals))]
+        refl = max((m[t].get("reflected_max", 0.0) for t in m if t.endswith("+reflections")))
+        rkey = next(t for t in m if t.endswith("+reflections") and m[t].get("reflected_max", 0.0) == refl)
+        lines.append(f"- {name}, the other models: TOMS 2005 {V(f'models.{name}.toms2005+reflections.median_abs_residual')}"
+                     f" (uniform {V(f'models.{name}.uniform.median_abs_residual')}); the band map "
+                     f"{V(f'models.{name}.band+reflections.median_abs_residual')} against CERES all-sky "
+                     f"{V(f'models.{name}.ceres2018-all+reflections.median_abs_residual')}; cloud weather "
+                     f"{V(f'models.{name}.{lo}.median_abs_residual')} to {V(f'models.{name}.{hi}.median_abs_residual')}"
+                     " (random realisations whose mean is the all-sky map, not those days' clouds: each adds "
+                     "clouds where there were none, so the mean map does better); the spacecraft's reflections: at "
+                     f"most {V(f'models.{name}.{rkey}.reflected_max', '{:.2g}')} of full Sun (the assumed arrays lie "
+                     "outside the diode's view).")
     lines.append("")
+    lines += ["What is left: near grazing incidence (cos 0-0.1) PD3 reads "
+              f"{V('models.PD3.ceres2018-all+reflections.bins.3', '{:+.3f}')} above the prediction, and from cos 0.1 "
+              f"to 0.5 both diodes read below it (PD3 {V('models.PD3.ceres2018-all+reflections.mid_median_residual', '{:+.3f}')}, "
+              f"PD6 {V('models.PD6.ceres2018-all+reflections.mid_median_residual', '{:+.3f}')}), where the albedo "
+              "can only add: the diodes' response and field of view and the attitude estimate, not the Earth "
+              "(below). " + _default_words(results, V), ""]
     lines += ["## Models (median residual, fraction of full Sun)", "",
               "| diode | model | median \\|res\\| | Sun behind: median res | Sun behind: median \\|res\\| | "
               "cos 0.1-0.5: median res |", "|---|---|---|---|---|---|"]
@@ -411,6 +441,17 @@ def render_page(results, marked=False):
     return "\n".join(lines)
 
 
+def _default_words(results, V):
+    """Return the sentence on the default map: CERES all-sky, and how far it is from each diode's best model."""
+    parts = []
+    for name, m in results["models"].items():
+        best = results["best"][name]
+        gap = m["ceres2018-all+reflections"]["median_abs_residual"] - m[best]["median_abs_residual"]
+        parts.append(f"{name} {V(gap, '{:.4f}')}" + (" (the best)" if gap == 0 else f" behind {m[best]['label']}"))
+    return ("The default map of `sunsim flight-check` is CERES 2018 all-sky; its median |residual| is the best's plus "
+            + ", ".join(parts) + ".")
+
+
 def _pd6_words(results, V):
     """Return the words on the PD6 question, chosen by the numbers (each quoted from the results)."""
     p = results["pd6"].get("PD6")
@@ -423,16 +464,27 @@ def _pd6_words(results, V):
     else:
         words.append(f"The scene's shadows change it to {V('pd6.PD6.rendered_direct', '{:+.4f}')}.")
     az = [q["median_residual"] for q in p["azimuth"] if q["median_residual"] is not None]
+    vals = [np.nan if q["median_residual"] is None else q["median_residual"] for q in p["azimuth"]]
+    i_lo, i_hi = int(np.nanargmin(vals)), int(np.nanargmax(vals))
     if az and max(az) < 0:
-        words.append("It is below the cosine from every side of the diode (all four azimuth quadrants negative): "
-                     "not the shadow of one structure.")
+        words.append("It is below the cosine from every side of the diode (all four azimuth quadrants negative), "
+                     f"but by different amounts ({V(f'pd6.PD6.azimuth.{i_lo}.median_residual', '{:+.3f}')} to "
+                     f"{V(f'pd6.PD6.azimuth.{i_hi}.median_residual', '{:+.3f}')}): a loss all round (a response "
+                     "below the cosine) with something that depends on the Sun's side on top (an unmodelled "
+                     "structure, or an attitude error with a preferred direction).")
     elif az:
         words.append("It depends on the side the Sun comes from (the azimuth quadrants differ in sign): a shadow "
                      "is possible.")
-    if abs(p["cover_glass_total"]) < abs(p["rendered_total"]):
-        words.append(f"A cover-glass (Fresnel) response brings the median to {V('pd6.PD6.cover_glass_total', '{:+.4f}')}"
-                     f" from {V('pd6.PD6.rendered_total', '{:+.4f}')}: the data favour a response below the cosine "
-                     "at large incidence.")
+    if p["cover_glass_total"] > 0 > p["rendered_total"]:
+        words.append(f"A cover glass of index {V('uncertainty.cover_glass_index', '{:g}')} (Fresnel loss at large "
+                     f"incidence) over-corrects it: {V('pd6.PD6.cover_glass_total', '{:+.4f}')} from "
+                     f"{V('pd6.PD6.rendered_total', '{:+.4f}')}. The truth lies between a bare cosine and such a "
+                     "glass: a response somewhat below the cosine at large incidence fits the sign and size; the data "
+                     "cannot tell it from an attitude error of a few degrees (the table below).")
+    elif abs(p["cover_glass_total"]) < abs(p["rendered_total"]):
+        words.append(f"A cover-glass response brings the median to {V('pd6.PD6.cover_glass_total', '{:+.4f}')} from "
+                     f"{V('pd6.PD6.rendered_total', '{:+.4f}')}: the data favour a response below the cosine at "
+                     "large incidence.")
     else:
         words.append("A cover-glass response does not bring it closer to zero.")
     return " ".join(words)
