@@ -31,6 +31,7 @@ from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
 from simcore.shapes.window import INDEX_RANGE, Window
 from simcore.errors import InvalidInputError
+from scenes.declared import ConfigError, diode_type, unit_normal
 from scenes.materials import DEFAULT as DEFAULT_MATERIAL, check_material
 
 CONFIG_DIR = Path(__file__).resolve().parent
@@ -50,7 +51,7 @@ ON_SURFACE_TOLERANCE_M = 0.5e-3
 WELL_KEYS = ("height_mm", "opening_mm", "chamfer_mm", "chamfer_deg", "shape", "diameter_mm")
 ROUND_WELL_KEYS = ("shape", "height_mm", "diameter_mm")
 WELL_REQUIRED = ("height_mm", "opening_mm")
-TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part")
+TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part", "diode_type")
 PART_KEYS = ("name", "file", "unit", "box_mm", "translate_mm", "rotate_deg", "hinge", "material")
 HINGE_KEYS = ("axis", "point_mm", "angle_deg")
 UNITS = {"mm": 1e-3, "m": 1.0}
@@ -65,10 +66,6 @@ PANELS = ("+x", "+y", "-x", "-y", "+z", "-z")
 _SIDE_PANELS = (("+x", 0.0), ("+y", 90.0), ("-x", 180.0), ("-y", 270.0))
 _TRIANGLE = {"+x": ((-1, -1), (0, +1), (+1, -1)), "-x": ((-1, -1), (0, +1), (+1, -1)),
              "+y": ((-1, +1), (0, -1), (+1, +1)), "-y": ((-1, +1), (0, -1), (+1, +1))}
-
-
-class ConfigError(InvalidInputError):
-    """A satellite configuration that cannot be built; the message says what to change."""
 
 
 def list_configs():
@@ -346,6 +343,7 @@ class MountedDiode:
     part: str = None  # the [[part]] it sits on (instead of a panel)
     surface_normal_body: np.ndarray = None   # on a part: the outward normal of the part's surface under it
     window: Window = None  # a cover glass / filter over the diode (simcore.shapes.window), or None
+    note: str = ""         # e.g. a normal written to a few digits, normalised (scenes/declared.py)
 
     def mount_corners_m(self, mount):
         """Return (floor_bottom (4, 3), wall_top (4, 3)) outer corners of the mount (body frame, m).
@@ -530,11 +528,7 @@ def _build_part_diode(where, table, part, mount, aperture):
     if "normal" not in table:
         raise ConfigError(f"{where}: give normal = [x, y, z], the diode's normal in part {part.name!r}'s own "
                           "coordinates (as in its file or box)")
-    n = _vector3(table["normal"], f"{where} normal")
-    if abs(np.linalg.norm(n) - 1.0) > 1e-5:
-        raise ConfigError(f"{where}: normal {n.tolist()} is not a unit vector (norm {np.linalg.norm(n):.6f}); "
-                          "normalise it")
-    n = n / np.linalg.norm(n)
+    n, note = unit_normal(_vector3(table["normal"], f"{where} normal"), where)
     at = _vector3(table.get("at_mm"), f"{where} at_mm (on a part: [x, y, z] in mm, the part's own coordinates)") * MM
     tri = part.local_vertices_m[part.faces]
     dist, unit = _point_triangle_distances(at, tri)
@@ -582,22 +576,20 @@ def _build_diode(index, table, body, mount, parts=()):
             arr.flags.writeable = False
         return MountedDiode(index=index, name=str(table.get("name", f"d{index}")), normal_body=frame[2],
                             frame_body=frame, position_body_m=centre, aperture=aperture, fov_deg=fov, panel=None,
-                            at_m=at, part=part.name, surface_normal_body=surface, window=window)
+                            at_m=at, part=part.name, surface_normal_body=surface, window=window,
+                            note=unit_normal(_vector3(table["normal"], f"{where} normal"), where)[1])
     panel = table.get("panel")
     if panel is None:
         raise ConfigError(f"{where}: give the mounting panel, one of {', '.join(PANELS)} (or part = a [[part]]'s name)")
     p, _, _ = panel_axes(panel)
+    note = ""
     if "normal" in table:
         if "az_deg" in table or "el_deg" in table:
             raise ConfigError(f"{where}: give either 'normal' or 'az_deg'/'el_deg', not both")
         n = np.asarray(table["normal"], dtype=float)
         if n.shape != (3,) or not np.all(np.isfinite(n)):
             raise ConfigError(f"{where}: normal must be 3 finite numbers (body frame), got {table['normal']!r}")
-        norm = float(np.linalg.norm(n))
-        if abs(norm - 1.0) > 1e-5:
-            raise ConfigError(f"{where}: normal {n.tolist()} is not a unit vector (norm {norm:.6f}); "
-                              "normalise it or give az_deg/el_deg")
-        n = n / norm
+        n, note = unit_normal(n, where)
     elif "az_deg" in table and "el_deg" in table:
         n = normal_from_az_el(float(table["az_deg"]), float(table["el_deg"]))
     else:
@@ -619,7 +611,8 @@ def _build_diode(index, table, body, mount, parts=()):
     for arr in (n, frame, at_m, centre):
         arr.flags.writeable = False
     return MountedDiode(index=index, name=str(table.get("name", f"d{index}")), normal_body=n, frame_body=frame,
-                 position_body_m=centre, aperture=aperture, fov_deg=fov, panel=panel, at_m=at_m, window=window)
+                 position_body_m=centre, aperture=aperture, fov_deg=fov, panel=panel, at_m=at_m, window=window,
+                 note=note)
 
 
 def _window_for(table, aperture, where):
@@ -783,6 +776,12 @@ class SatelliteConfig:
     layout: dict = field(default_factory=dict)
     source: str = ""
     parts: tuple = ()
+    diode_type: str = None   # the diodes' part (band of --map band), "unknown", or None: BPW34FS (declared.py)
+
+    @property
+    def notes(self):
+        """Return the notes of loading this configuration (normals normalised, ...): the run prints and stores them."""
+        return tuple(d.note for d in self.diodes if d.note)
 
     # --- construction -------------------------------------------------------------------------
     @classmethod
@@ -855,7 +854,7 @@ class SatelliteConfig:
         _validate_parts(parts, diodes)
         cfg = cls(name=str(data.get("name", "custom")), description=str(data.get("description", "")), body=body,
                   mount=mount, diodes=diodes, dead=np.zeros(len(diodes), bool), layout=layout, source=source,
-                  parts=parts)
+                  parts=parts, diode_type=diode_type(data.get("diode_type"), where))
         return cfg.with_dead(data.get("dead", []) if dead is None else dead)
 
     def with_dead(self, indices):

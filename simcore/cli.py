@@ -28,9 +28,10 @@ def _output_folder(folder, option):
 def _add_orbit_options(p):
     p.add_argument("--tle", metavar="FILE", help=DEFAULT_TLE_HELP)
     p.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
-    p.add_argument("--start", default="2016-07-02T00:00:00Z", help="first epoch, ISO-8601 UTC (default: %(default)s)")
+    p.add_argument("--start", default=None, help="first epoch, ISO-8601 UTC (default: 2016-07-02T00:00:00Z, or "
+                                                 "the first sample of an --attitude history with absolute times)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="seconds to simulate (default: one orbital period)")
+                   help="seconds to simulate (default: one orbital period, or the rest of an --attitude history)")
     p.add_argument("--step", type=float, default=1.0, metavar="S", help="seconds between epochs (default: %(default)s)")
     p.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S",
                    help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
@@ -88,7 +89,8 @@ def _add_render_options(p):
     p.add_argument("--config", default="tilt20_fov70", metavar="NAME_OR_TOML",
                    help="satellite configuration: a shipped name (tilt0_fov90, tilt{20,25,30}_fov{70,75}) "
                         "or a .toml file (scenes/FORMAT.md); default %(default)s")
-    p.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz (overrides the tumble)")
+    from simcore.pipeline.run_args import add_attitude_options
+    add_attitude_options(p)
     p.add_argument("--dynamics", metavar="INERTIA",
                    help="torque-free Euler dynamics instead of the constant tumble, starting at --spin-rate about "
                         "the body diagonal; INERTIA in kg m^2: 'IXX,IYY,IZZ' or 'IXX,IYY,IZZ,IXY,IXZ,IYZ'")
@@ -155,6 +157,7 @@ def run_options(args):
     return RunOptions(
         config=args.config, tle=args.tle, satellite=args.satellite, start=args.start, duration_s=args.duration,
         step_s=args.step, spin_rate_deg_s=args.spin_rate, attitude_file=args.attitude, dynamics=args.dynamics,
+        attitude_frame=args.attitude_frame, attitude_direction=args.attitude_direction, times_file=args.times,
         rel_se_direct=None if samples else args.accuracy[0], rel_se_albedo=None if samples else args.accuracy[1],
         direct_samples=samples[0] if samples else 1024, albedo_samples=samples[1] if samples else 256,
         reflected_samples=args.reflected_samples, dead=tuple(args.dead), extra_flat_diodes=args.extra_flat, variant=args.variant, seed=args.seed, reflectivity=args.map,

@@ -99,7 +99,11 @@ def test_a_user_attitude_history_drives_the_study(tmp_path):
                              output=str(tmp_path / "a.nc")))
     np.testing.assert_allclose(study.geometry.R_gcrs_from_body[:, :, 0], np.tile([0.0, 1.0, 0.0], (50, 1)), atol=1e-12)
     with pytest.raises(ValueError, match="outside|span"):
-        PreparedRun(RunOptions(duration_s=500, attitude_file=str(csv), output=str(tmp_path / "b.nc")))
+        PreparedRun(RunOptions(start="2016-07-02T00:45:00Z", duration_s=500, attitude_file=str(csv),
+                               output=str(tmp_path / "b.nc")))
+    # a relative-time history carries no date: without --start it is refused (it once rendered 2016-07-02 silently)
+    with pytest.raises(ValueError, match="relative times .* give --start"):
+        PreparedRun(RunOptions(duration_s=50, attitude_file=str(csv), output=str(tmp_path / "c.nc")))
 
 
 def test_a_north_first_map_renders_the_same_earth_as_south_first(tmp_path):

@@ -25,12 +25,13 @@ Conventions
 
 Flags (per interval between consecutive samples; limits in :class:`HistoryLimits`, stated defaults)
 ----------------------------------------------------------------------------------------------------
-* ``gap``: the samples are more than ``max_gap_s`` apart: slerp across it would invent the attitude.
+* ``gap``: the samples are more than ``max(max_gap_s, 3 x the median step)`` apart (:data:`GAP_MEDIAN_FACTOR`):
+  slerp across it would invent the attitude.
 * ``jump``: the apparent rate (rotation angle between the samples / their time step) exceeds
   ``max_rate_deg_s``: one of the two is wrong, or the step is too coarse to interpolate.
-* ``frozen``: the quaternion is the same bit for bit over at least ``min_frozen_s`` (a stuck estimator or
-  a held telemetry value; a recorded attitude that truly stands still is told by setting
-  ``min_frozen_s=None``).
+* ``frozen``: the quaternion is the same bit for bit over at least ``min_frozen_s`` while the rest of the
+  history moves (a stuck estimator or a held telemetry value). A history that holds one quaternion
+  throughout is taken as an intended hold and not flagged; ``min_frozen_s=None`` switches the flag off.
 
 A sample is trusted when at least one of its intervals is (a lone bad sample between two jumps is not);
 an epoch strictly between two samples when its interval is. A one-sample history is trusted at that
@@ -58,6 +59,9 @@ DIRECTIONS = ("body_to_frame", "frame_to_body")
 SPAN_TOLERANCE_S = 1e-6
 # sunsim's absolute-time attitude CSV (AttitudeHistory.from_csv / to_csv)
 CSV_TIME_COLUMN = "time_utc"
+# a gap is an interval longer than max(HistoryLimits.max_gap_s, this x the median step): a history sampled
+# coarsely throughout (another simulator's 60-s output, two samples of a fixed attitude) is not all gaps
+GAP_MEDIAN_FACTOR = 3.0
 CSV_HEADERS = {(CSV_TIME_COLUMN, "qw", "qx", "qy", "qz"): True, (CSV_TIME_COLUMN, "qx", "qy", "qz", "qw"): False}
 
 
@@ -161,7 +165,9 @@ class AttitudeHistory:
     def _compute_flags(self, step):
         lim, q = self.limits, self.q_frame_from_body
         n = len(self.epochs)
-        gap = np.zeros(n - 1, bool) if lim.max_gap_s is None else step > lim.max_gap_s
+        self.gap_limit_s = None if lim.max_gap_s is None else max(lim.max_gap_s, GAP_MEDIAN_FACTOR * np.median(step)) \
+            if n > 1 else lim.max_gap_s
+        gap = np.zeros(n - 1, bool) if lim.max_gap_s is None else step > self.gap_limit_s
         if n > 1:
             angle = _rotation_angle_deg(q[:-1], q[1:])
             rate = angle / step
@@ -169,7 +175,8 @@ class AttitudeHistory:
             rate = np.zeros(0)
         jump = np.zeros(n - 1, bool) if lim.max_rate_deg_s is None else rate > lim.max_rate_deg_s
         frozen = np.zeros(n - 1, bool)
-        if lim.min_frozen_s is not None and n > 1:
+        # a history that holds one attitude throughout is an intended hold, not a stuck estimate
+        if lim.min_frozen_s is not None and n > 1 and not np.all(q == q[0]):
             same = np.all(q[1:] == q[:-1], axis=1)
             i = 0
             while i < n - 1:
@@ -210,7 +217,7 @@ class AttitudeHistory:
         dropped = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in self.dropped.items() if v)
         return (f"attitude history {self.source or ''} {self.epochs.iso()[0]} .. {self.epochs.iso()[-1]}: "
                 f"{c['samples']} samples ({self.frame}, {self.direction}); intervals flagged: {c['gap']} gaps "
-                f"(> {lim.max_gap_s} s), {c['jump']} jumps (> {lim.max_rate_deg_s} deg/s), {c['frozen']} frozen "
+                f"(> {self.gap_limit_s:g} s), {c['jump']} jumps (> {lim.max_rate_deg_s} deg/s), {c['frozen']} frozen "
                 f"(same quaternion >= {lim.min_frozen_s} s); {c['untrusted_samples']} samples untrusted"
                 + (f"; rows left out by the reader: {dropped}" if dropped else "")).replace("  ", " ")
 
@@ -379,7 +386,8 @@ def read_text(path, what):
     except UnicodeDecodeError:
         text = None
     if text is None or "\x00" in text:
-        raise InvalidInputError(f"{path} is not a {what} (it holds binary data); give the text file")
+        article = "an" if what[:1].lower() in "aeiou" else "a"
+        raise InvalidInputError(f"{path} is not {article} {what} (it holds binary data); give the text file")
     if not text.strip():
         raise InvalidInputError(f"{path} is empty; give a {what}")
     return text

@@ -41,7 +41,7 @@ import numpy as np
 
 from simcore.environment.epochs import Epochs
 from simcore.environment.history import AttitudeHistory, HistoryLimits, read_text
-from simcore.errors import InvalidInputError
+from simcore.errors import InputNotFoundError, InvalidInputError
 
 OPSSAT_DIR = Path(__file__).resolve().parent.parent / "data" / "flight" / "opssat"
 OPSSAT_ATTITUDE = OPSSAT_DIR / "attitude_2020-11-15_to_21.csv"
@@ -346,7 +346,9 @@ def read_attitude_history(path, *, start=None, frame=None, direction=None, limit
       otherwise): it carries no date, so ``start`` (its first row's UTC time) is required.
     """
     path = os.fspath(path)
-    text = read_text(path, "attitude file")
+    if not os.path.exists(path):
+        raise InputNotFoundError(f"attitude file {path} not found; give an existing file")
+    text = read_text(path, "attitude CSV file")
     first = next((ln.strip() for ln in text.splitlines() if ln.strip()), "")
     if first == GRAINS_FIRST_LINE:
         _no_direction(direction, path, "GRAINS export")

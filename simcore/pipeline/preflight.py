@@ -147,3 +147,20 @@ def tle_age_note(orbit, epochs):
     return (f"the span reaches {worst:+.1f} days from the epoch of the TLE ({orbit.epoch.iso()[0]}); SGP4 position "
             f"errors grow by about {SGP4_KM_PER_DAY[0]:g}-{SGP4_KM_PER_DAY[1]:g} km per day from the epoch, "
             f"~{lo:.0f}-{hi:.0f} km here: use a TLE from near the start when the date matters")
+
+
+def map_for_diodes(map_name, config):
+    """Return the map name to resolve for ``config``'s diodes: ``--map band`` / ``band-clear`` without a diode
+    takes the configuration's declared ``diode_type`` (scenes/declared.py); an "unknown" type refuses it (one
+    line: assume a part with band:DIODE, or take a broadband map). Other names are returned as they are."""
+    from simcore.radiometry.band import parse_map_name
+    head = str(map_name).replace("_", "-")
+    declared = getattr(config, "diode_type", None)
+    if ":" in head or parse_map_name(map_name) is None or declared is None:
+        return map_name
+    if declared == "unknown":
+        raise InvalidInputError(f"--map {map_name} sees the Earth in the diodes' spectral band, but {config.name} "
+                                "declares diode_type = \"unknown\": give --map band:DIODE to assume a part, or a "
+                                "broadband map (ceres2018-all, toms2005)")
+    return f"{map_name}:{declared}"
+

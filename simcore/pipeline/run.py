@@ -43,9 +43,12 @@ from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
-from simcore.pipeline.preflight import REFLECTED_SAMPLES, check_map, check_numbers, check_variant, tle_age_note
+from simcore.pipeline.preflight import (REFLECTED_SAMPLES, check_map, check_numbers, check_variant, map_for_diodes,
+                                       tle_age_note)
 from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
-from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
+from simcore.environment.geometry import compute_geometry, orbital_period_s
+from simcore.pipeline import schedule as _schedule
+from simcore.pipeline.schedule import study_geometry  # noqa: F401 (its old home: callers import it from here)
 
 # The analytic reference for the albedo check uses cells refined 2 x 2; its estimated discretisation error
 # (check.discretisation_bound, a third of |native - refined|) joins each diode-epoch's variance. On a sunlit
@@ -73,12 +76,17 @@ class RunOptions:
     config: str = "tilt20_fov70"
     tle: str = None
     satellite: str = None
-    start: str = DEFAULT_START
-    duration_s: float = None          # None: one orbital period
+    start: str = None                  # None: the attitude history's first sample, else DEFAULT_START (schedule.py)
+    duration_s: float = None          # None: the rest of the attitude history, else one orbital period
     step_s: float = 1.0
     spin_rate_deg_s: float = _attitude.DEFAULT_TUMBLE_RATE_DEG_S
     spin_axis: tuple = (1.0, 1.0, 1.0)
-    attitude_file: str = None          # CSV t_s,qw,qx,qy,qz (overrides the tumble)
+    attitude_file: str = None          # attitude history file (environment.telemetry.read_attitude_history)
+    attitude_frame: str = None         # its frame / direction where the file does not declare them
+    attitude_direction: str = None
+    attitude_history: object = None    # in-process AttitudeHistory (instead of attitude_file)
+    times_file: str = None             # explicit epochs: one ISO-8601 UTC time per line (schedule.read_times)
+    epochs: object = None              # explicit epochs in-process (an Epochs)
     dynamics: str = None               # inertia 'IXX,IYY,IZZ[,IXY,IXZ,IYZ]' kg m^2: torque-free Euler dynamics
     rel_se_direct: float = 0.002       # target relative standard errors (None: fixed sample counts)
     rel_se_albedo: float = 0.01
@@ -118,44 +126,14 @@ class RunOptions:
         if d["reflected_samples"] == REFLECTED_SAMPLES:     # runs at the default keep the digest they always had
             d.pop("reflected_samples")
         d["spin_axis"] = [float(x) for x in d["spin_axis"]]
-        for k in ("config", "tle", "attitude_file"):
-            v = d[k]
+        _schedule.spec_fields(self, d)
+        for k in ("config", "tle", "attitude_file", "times_file"):
+            v = d.get(k)
             if v and os.path.isfile(v):
                 with open(v, "rb") as f:
                     d[k + "_sha256"] = hashlib.sha256(f.read()).hexdigest()
         d["sunsim_version"] = __version__
         return d
-
-
-def study_geometry(opts):
-    """Return (orbit, attitude, geometry) of the orbit, time span and attitude that ``opts`` describe.
-
-    An attitude file's first row is the run's start, whatever its time origin (``Attitude.from_file``)."""
-    if opts.step_s is None or not opts.step_s > 0:
-        raise InvalidInputError(f"--step must be a positive number of seconds, got {opts.step_s}")
-    orbit = Orbit.default(opts.satellite) if opts.tle is None else Orbit.from_file(opts.tle, satellite=opts.satellite)
-    duration = orbital_period_s(orbit) if opts.duration_s is None else opts.duration_s
-    if not (np.isfinite(duration) and 0 < duration <= 400 * 86400):
-        raise InvalidInputError(f"--duration must be between 0 and 400 days in seconds, got {duration}")
-    epochs = Epochs.range(opts.start, duration, opts.step_s)
-    t_s = epochs.seconds_since(epochs[0])
-    if opts.attitude_file and opts.dynamics:
-        raise ValueError("--attitude and --dynamics both set the attitude; give one of them")
-    if opts.attitude_file:
-        history = _attitude.Attitude.from_file(opts.attitude_file)
-        span = history.t_s[-1] - history.t_s[0]
-        if t_s[-1] > span:
-            raise InvalidInputError(f"the attitude file {opts.attitude_file} spans {span:g} s but the run needs "
-                                    f"{t_s[-1]:g} s after its start; supply a longer history or a shorter --duration")
-        attitude = history.resample(history.t_s[0] + t_s)
-    elif opts.dynamics:
-        from simcore.environment.dynamics import parse_inertia, propagate_torque_free
-        axis = np.asarray(opts.spin_axis, dtype=float)
-        w0 = np.radians(opts.spin_rate_deg_s) * axis / np.linalg.norm(axis)
-        attitude, _ = propagate_torque_free(t_s, parse_inertia(opts.dynamics), w0)
-    else:
-        attitude = _attitude.tumble(t_s, rate_deg_s=opts.spin_rate_deg_s, axis_body=opts.spin_axis)
-    return orbit, attitude, compute_geometry(orbit, epochs, attitude)
 
 
 class PreparedRun:
@@ -165,13 +143,15 @@ class PreparedRun:
         self.opts = opts
         self.config = SatelliteConfig.load(opts.config, dead=list(opts.dead),
                                            extra_flat_diodes=True if opts.extra_flat_diodes else None)
-        self.orbit, self.attitude, self.geometry = study_geometry(opts)
+        self.plan = _schedule.plan(opts)
+        self.orbit, self.attitude = self.plan.orbit, self.plan.attitude
+        self.geometry = compute_geometry(self.orbit, self.plan.epochs, self.attitude)
         self.epochs = self.geometry.epochs
         self.clouds = None
         if getattr(opts, "clouds", None) is None:
-            self.map = band.resolve_map(opts.reflectivity)
+            self.map = band.resolve_map(map_for_diodes(opts.reflectivity, self.config))
         else:
-            self.clouds = band.cloud_weather(opts.reflectivity, opts.cloud_scale_km)
+            self.clouds = band.cloud_weather(map_for_diodes(opts.reflectivity, self.config), opts.cloud_scale_km)
             self.map = self.clouds.realise(opts.clouds)
         self.check_refine = CHECK_REFINE if self.clouds is None else CHECK_REFINE_CLOUDS
         self.map_refined = self.map.refined(self.check_refine)
@@ -680,6 +660,7 @@ def build_dataset(study, data, variant):
         },
         coords=coords,
     )
+    ds = _schedule.annotate(ds, study, n)
     tle = f"{study.orbit.line1}\n{study.orbit.line2}"
     cfg_text = Path(cfg.source).read_text() if cfg.source and os.path.isfile(cfg.source) else ""
     ds.attrs.update({
@@ -770,7 +751,8 @@ def prepare(opts):
         raise InvalidInputError(f"all {study.config.n_diodes} diodes of {study.config.name} are dead (--dead "
                                 f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
     study.variant = variant
-    study.notes = [n for n in (tle_age_note(study.orbit, study.epochs),) if n]
+    study.notes = ([n for n in (tle_age_note(study.orbit, study.epochs),) if n] + list(study.plan.notes)
+                   + list(study.config.notes))
     return study
 
 
@@ -939,7 +921,7 @@ def options_of(ds, path):
     """Return the RunOptions a run file was made with (from its 'options' attribute)."""
     spec = json.loads(ds.attrs["options"])
     names = {f.name for f in dataclasses.fields(RunOptions)}
-    kw = {k: v for k, v in spec.items() if k in names}
+    kw = _schedule.explicit_options({k: v for k, v in spec.items() if k in names}, ds)
     for k in ("dead", "spin_axis"):
         if k in kw:
             kw[k] = tuple(kw[k])
