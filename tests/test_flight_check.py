@@ -8,9 +8,7 @@ uniform baseline against readings built from its own closed form. The page again
 """
 import json
 import math
-import os
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np

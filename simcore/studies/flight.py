@@ -299,18 +299,20 @@ def sample_arrays(telemetry, pred, uniform_albedo, model_key):
     return out
 
 
-def plain_cosine(geometry, normals, reflectivity=None):
+def plain_cosine(geometry, normals, reflectivity=None, response=None):
     """Return ((N, K) direct Sun, (N, K) albedo) of plain cosine diodes of ``normals`` (no body) in units of the
     full-Sun irradiance at normal incidence: the direct Sun with the conical eclipse, the albedo on
     ``reflectivity`` (None: a uniform Lambertian Earth of albedo 1, whose albedo irradiance scales linearly with
-    the albedo: the uniform baseline at albedo a is ``direct + a * albedo``)."""
+    the albedo: the uniform baseline at albedo a is ``direct + a * albedo``). ``response``: another angular
+    response than the cosine (e.g. a :class:`simcore.shapes.aperture.WellAperture` limiting the field of view)."""
     from simcore.environment.maps import uniform_map
     from simcore.radiometry.analytic import diode_irradiance
     from simcore.radiometry.response import CosineResponse
     from simcore.shapes.aperture import diode_frame
     frames = np.stack([diode_frame(np.asarray(n, float) / np.linalg.norm(n)) for n in normals])
     g = geometry
-    res = diode_irradiance(g.r_sat_ecef_m, g.r_sun_ecef_m, g.R_ecef_from_body, frames, CosineResponse(),
+    res = diode_irradiance(g.r_sat_ecef_m, g.r_sun_ecef_m, g.R_ecef_from_body, frames,
+                           CosineResponse() if response is None else response,
                            map=uniform_map(1.0) if reflectivity is None else reflectivity, e_sun_w_m2=1.0,
                            distance_scaling=False, eclipse="conical", precision="double")
     return res.direct_w_m2, res.albedo_w_m2

@@ -25,13 +25,14 @@ import numpy as np
 from simcore.errors import InputNotFoundError, InvalidInputError
 
 CLOUD_SEEDS = (1, 2, 3)
-MAPS = (("toms2005", "TOMS 2005", None), ("ceres2018-all", "CERES 2018 all-sky", None), ("band", "band map", None))
+MAPS = (("toms2005", "TOMS 2005", None), ("ceres2018-all", "CERES 2018 all-sky", None), ("band:BPW34FS", "band map (a BPW34FS band assumed)", None))
 ATTITUDE_SIGMAS_DEG = (1.0, 3.0)         # per-axis rms of the random rotation
 ATTITUDE_SEEDS = (0, 1, 2)
 # The along-track error of a TLE 9-16 days old: SGP4 position errors grow by ~1-3 km per day for a LEO TLE
 # (assumed, typical of published SGP4 accuracy studies); 16 days x 2.5 km/day = 40 km = ~5.3 s at 7.6 km/s.
 TLE_SHIFT_S = 5.3
 COVER_GLASS_INDEX = 1.5
+WELL_FOV_DEG = 70.0          # an unknown field of view: the diode in a well fully lit to 70 deg (eq. 4.15 design)
 PD6_RANGE = (0.1, 0.5)
 FIGURES = ("time_series.png", "residual_vs_cos.png", "residual_vs_earth_view.png")
 
@@ -127,7 +128,7 @@ def run_study(folder, sat, pd, attitude, tle, scene, *, runs="runs/flight-check"
     return str(path)
 
 
-def _analytic(tel, tle, normals, *, attitude=None, shift_s=0.0, reflectivity="ceres2018-all"):
+def _analytic(tel, tle, normals, *, attitude=None, shift_s=0.0, reflectivity="ceres2018-all", response=None):
     """Return (N, K) predicted readings of plain cosine diodes + the analytic albedo on ``reflectivity``, and
     (N,) the illumination: the model the uncertainty estimates perturb (no render)."""
     from simcore.environment.geometry import compute_geometry
@@ -136,7 +137,7 @@ def _analytic(tel, tle, normals, *, attitude=None, shift_s=0.0, reflectivity="ce
     from simcore.studies.flight import plain_cosine
     att = tel.history.attitude_at(tel.epochs) if attitude is None else attitude
     g = compute_geometry(Orbit.from_file(str(tle)), tel.epochs + shift_s if shift_s else tel.epochs, att)
-    direct, alb = plain_cosine(g, normals, resolve_map(reflectivity))
+    direct, alb = plain_cosine(g, normals, resolve_map(reflectivity), response)
     return direct, alb, np.nan_to_num(g.illumination), g.sun_dir_body
 
 
@@ -168,6 +169,8 @@ def uncertainty(tel, tle, pred, names):
             for s in ATTITUDE_SIGMAS_DEG}
     shifted = [_analytic(tel, tle, pred.normals, shift_s=d) for d in (-TLE_SHIFT_S, TLE_SHIFT_S)]
     glass = Window(COVER_GLASS_INDEX, 1e-3, 0.0, (0.01, 0.01))
+    from simcore.shapes.aperture import WellAperture
+    well = _analytic(tel, tle, pred.normals, response=WellAperture.design(WELL_FOV_DEG))
     for k, name in enumerate(names):
         base = med(base_d[:, k] + base_a[:, k], k)
         d = {"median_abs_residual": round(base, 5)}
@@ -177,10 +180,12 @@ def uncertainty(tel, tle, pred, names):
         cos = np.clip(sun_body @ pred.normals[k], 1e-9, 1.0)
         ratio = glass.transmittance(cos) / glass.transmittance(1.0)
         d["cover_glass"] = round(med(base_d[:, k] * ratio + base_a[:, k], k) - base, 5)
+        d["fov_well"] = round(med(well[0][:, k] + well[1][:, k], k) - base, 5)
         out["diodes"][name] = d
     out["attitude_sigmas_deg"] = list(ATTITUDE_SIGMAS_DEG)
     out["tle_shift_s"] = TLE_SHIFT_S
     out["cover_glass_index"] = COVER_GLASS_INDEX
+    out["well_fov_deg"] = WELL_FOV_DEG
     return out
 
 
@@ -358,7 +363,7 @@ def render_page(results, marked=False):
         rkey = next(t for t in m if t.endswith("+reflections") and m[t].get("reflected_max", 0.0) == refl)
         lines.append(f"- {name}, the other models: TOMS 2005 {V(f'models.{name}.toms2005+reflections.median_abs_residual')}"
                      f" (uniform {V(f'models.{name}.uniform.median_abs_residual')}); the band map "
-                     f"{V(f'models.{name}.band+reflections.median_abs_residual')} against CERES all-sky "
+                     f"{V(f'models.{name}.band:BPW34FS+reflections.median_abs_residual')} against CERES all-sky "
                      f"{V(f'models.{name}.ceres2018-all+reflections.median_abs_residual')}; cloud weather "
                      f"{V(f'models.{name}.{lo}.median_abs_residual')} to {V(f'models.{name}.{hi}.median_abs_residual')}"
                      " (random realisations whose mean is the all-sky map, not those days' clouds: each adds "
@@ -416,18 +421,20 @@ def render_page(results, marked=False):
               f"On the analytic model ({u['model']}), the change of the median |residual| each source can make:", "",
               "| diode | median \\|res\\| | attitude " + " | attitude ".join(
                   f"{V(f'uncertainty.attitude_sigmas_deg.{i}', '{:g}')} deg rms" for i in range(len(u["attitude_sigmas_deg"])))
-              + f" | TLE age (orbit +-{V('uncertainty.tle_shift_s', '{:g}')} s along track) | cover glass response |",
-              "|---|---|" + "---|" * (len(u["attitude_sigmas_deg"]) + 2)]
+              + f" | TLE age (orbit +-{V('uncertainty.tle_shift_s', '{:g}')} s along track) | cover glass response "
+              f"| field of view {V('uncertainty.well_fov_deg', '{:g}')} deg (a well) |",
+              "|---|---|" + "---|" * (len(u["attitude_sigmas_deg"]) + 3)]
     for name in names:
         p = f"uncertainty.diodes.{name}"
         lines.append(f"| {name} | {V(p + '.median_abs_residual')} | " + " | ".join(
             V(f"{p}.attitude_{s:g}deg", "{:+.4f}") for s in u["attitude_sigmas_deg"])
-            + f" | {V(p + '.tle_age', '{:+.4f}')} | {V(p + '.cover_glass', '{:+.4f}')} |")
+            + f" | {V(p + '.tle_age', '{:+.4f}')} | {V(p + '.cover_glass', '{:+.4f}')} | "
+              f"{V(p + '.fov_well', '{:+.4f}')} |")
     lines += ["", "The attitude is the coarse ADCS's own estimate (probably from these diodes and a magnetometer): "
               "its error is not known; the rows show what a random error of that size would add. The TLE is 9-16 "
               "days old; the shift is its plausible along-track error (simcore/studies/flight_page.py). The diodes' "
               "type, response and field of view are not published: the cover-glass row is one plausible non-cosine "
-              "response.", ""]
+              "response, the well one plausible field of view (its walls cut the Earth's light from near the horizon).", ""]
     lines += ["## Figures", "",
               "![measured and predicted readings over a few orbits](time_series.png)", "",
               "![residual against cos(incidence): direct only, uniform (fitted), CERES + reflections]"
