@@ -92,7 +92,7 @@ def run_study(folder, sat, pd, attitude, tle, scene, *, runs="runs/flight-check"
             if "direct" not in models[name]:
                 models[name]["direct"] = {"label": "direct Sun only", **_summary(m, pred.direct[:, k], cos, use)}
                 a, _ = F.uniform_baseline(m[use], pred.cosine_direct[use, k], pred.uniform_unit[use, k])
-                models[name]["uniform"] = {"label": f"uniform albedo {a:g} (plain cosine, fitted)", "albedo": a,
+                models[name]["uniform"] = {"label": "uniform albedo (plain cosine, fitted)", "albedo": a,
                                            **_summary(m, pred.cosine_direct[:, k] + a * pred.uniform_unit[:, k],
                                                       cos, use)}
                 models[name]["n"] = int(use.sum())
@@ -385,7 +385,8 @@ def render_page(results, marked=False):
             if key == "n":
                 continue
             p = f"models.{name}.{key}"
-            lines.append(f"| {name} | {row['label']} | {V(p + '.median_abs_residual')} | "
+            label = row["label"] + (f" {V(p + '.albedo', '{:g}')}" if key == "uniform" else "")
+            lines.append(f"| {name} | {label} | {V(p + '.median_abs_residual')} | "
                          f"{V(p + '.sun_behind_median_residual')} | {V(p + '.sun_behind_median_abs_residual')} | "
                          f"{V(p + '.mid_median_residual')} |")
     lines.append("")
@@ -407,7 +408,8 @@ def render_page(results, marked=False):
               "response that is not a cosine (e.g. a cover glass' Fresnel loss) is the same all round; a random "
               "attitude error averages out where the cosine is straight.", "",
               "| diode | n | plain cosine | rendered direct | rendered total | cover glass (n = "
-              f"{V('uncertainty.cover_glass_index', '{:g}')}) + albedo | Sun azimuth 0-90 / 90-180 / 180-270 / 270-360 deg |",
+              f"{V('uncertainty.cover_glass_index', '{:g}')}) + albedo | Sun azimuth, deg: " + " / ".join(
+                  f"{V(f'pd6.{names[0]}.azimuth.{i}.from_deg', '{:g}')}+" for i in range(4)) + " |",
               "|---|---|---|---|---|---|---|"]
     for name in names:
         p = f"pd6.{name}"
