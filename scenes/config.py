@@ -31,7 +31,7 @@ from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
 from simcore.shapes.window import INDEX_RANGE, Window
 from simcore.errors import InvalidInputError
-from scenes.declared import ConfigError, diode_type, unit_normal
+from scenes.declared import ConfigError, body_none as _flag, diode_type, unit_normal
 from scenes.materials import DEFAULT as DEFAULT_MATERIAL, check_material
 
 CONFIG_DIR = Path(__file__).resolve().parent
@@ -40,7 +40,8 @@ MM = 1e-3
 # Body defaults: a 2U CubeSat envelope (CubeSat Design Specification rev. 14:
 # 100 x 100 x 227 mm, 8.5 mm square rails) and the NUTS launch-pod clearance
 # (thesis sec. 4.2.1: 9 mm from the panel surface to the pod interior).
-BODY_DEFAULTS = {"size_mm": [100.0, 100.0, 227.0], "rail_mm": 8.5, "clearance_mm": 9.0, "material": "black"}
+BODY_DEFAULTS = {"size_mm": [100.0, 100.0, 227.0], "rail_mm": 8.5, "clearance_mm": 9.0, "material": "black",
+                 "none": False}
 MOUNT_DEFAULTS = {"wall_mm": 0.5, "floor_mm": 0.5, "base_mm": 0.5, "material": "black"}
 LAYOUT_DEFAULTS = {"pattern": None, "tilt_deg": None, "fov_deg": None, "extra_flat_diodes": False,
                    "triangle_mm": [22.0, 40.0], "extra_offset_mm": 25.0, "window": None}
@@ -137,6 +138,7 @@ class Body:
     rail_m: float
     clearance_m: float
     material: object = DEFAULT_MATERIAL  # scenes.materials: a name or a Mitsuba BSDF dict
+    none: bool = False    # [body] none = true: the panels place the diodes, but no body is rendered or shadows
 
     def panel_centre_m(self, panel):
         """Return the centre of a panel's outer surface (body frame, m)."""
@@ -822,7 +824,7 @@ class SatelliteConfig:
             raise ConfigError(f"[body] size_mm must be three positive lengths (x, y, z) in mm, got {bd['size_mm']!r}")
         body = Body(size_m=tuple(size * MM), rail_m=float(bd["rail_mm"]) * MM,
                     clearance_m=float(bd["clearance_mm"]) * MM,
-                    material=check_material(bd["material"], f"{where} [body] material"))
+                    material=check_material(bd["material"], f"{where} [body] material"), none=_flag(bd["none"], where))
         md = _merged(data.get("mount"), MOUNT_DEFAULTS, "mount")
         if not (md["wall_mm"] > 0 and md["floor_mm"] > 0 and md["base_mm"] >= 0):
             raise ConfigError(f"[mount] wall_mm and floor_mm must be > 0 and base_mm >= 0, got {md}")

@@ -4,6 +4,8 @@
   silently); within :data:`NORMAL_ROUNDED_TOL` it is a normal written to a few digits (a fitted normal to
   three digits is unit only to ~1e-3): normalised, with a note that the run prints and stores; beyond, it
   is refused (a wrong component, not rounding).
+* ``[body] none = true``: a study of bare diodes: the body's size still places the diodes on its panels,
+  but no body is rendered and none shadows them (the analytic model's body box is left out too).
 * ``diode_type`` (top level of the TOML): the diodes' part, which decides the spectral band of
   ``--map band``: a name :mod:`simcore.radiometry.band` knows (e.g. "BPW34FS", "BPV23F"), or "unknown":
   then ``--map band`` is refused with a line naming the ways out (``band:DIODE`` to assume a part, or a
@@ -46,3 +48,10 @@ def diode_type(value, where):
                                 f"\"{UNKNOWN_DIODE}\", got {value!r}")
     v = value.strip()
     return UNKNOWN_DIODE if v.lower() == UNKNOWN_DIODE else v.upper()
+
+
+def body_none(value, where):
+    """Return ``[body] none`` as a bool, or raise: it must be true or false."""
+    if not isinstance(value, bool):
+        raise ConfigError(f"{where}: [body] none must be true or false, got {value!r}")
+    return value

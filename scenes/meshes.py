@@ -168,8 +168,10 @@ def build_parts(config, include_diodes=False):
     frame, m)."""
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
-    parts = {"body": body_mesh(config)}
-    parts["body"].metadata["material"] = config.body.material
+    parts = {}
+    if not config.body.none:                     # [body] none = true: bare diodes, no body
+        parts["body"] = body_mesh(config)
+        parts["body"].metadata["material"] = config.body.material
     for k in range(config.n_diodes):
         for name, mesh in mount_meshes(config, k).items():
             mesh.metadata.setdefault("material", config.mount.material)

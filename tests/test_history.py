@@ -171,3 +171,14 @@ def test_csv_round_trip_and_declarations(tmp_path):
     p3.write_text("time_utc,qw,qx,qy,qz\n2020-11-15 25:00:00,1,0,0,0\n")
     with pytest.raises(InvalidInputError, match="ISO-8601"):
         AttitudeHistory.from_csv(p3)
+
+
+def test_a_coarse_history_is_not_all_gaps():
+    # another simulator's output every 60 s: the gap limit is 3 x the median step (180 s), so only the 240-s hole
+    t = np.r_[0.0:600.0:60.0, 840.0:1200.0:60.0]
+    e = Epochs.from_any(T0) + t
+    h = AttitudeHistory(e, tumble(t, rate_deg_s=0.1).q_gcrs_from_body)
+    assert np.flatnonzero(h.flags()["gap"]).tolist() == [9] and h.gap_limit_s == 180.0
+    # a fixed attitude given by two samples 100 s apart: a hold, neither a gap nor frozen
+    two = AttitudeHistory(Epochs.from_any(T0) + np.array([0.0, 100.0]), [[1.0, 0, 0, 0]] * 2)
+    assert two.trusted(Epochs.from_any(T0) + np.array([0.0, 50.0, 100.0])).all()

@@ -52,6 +52,12 @@ def quat_normalize(q):
     return q / norm[:, None]
 
 
+def norm_outliers(q, tol):
+    """Return (norms (N,), indices of the rows of ``q`` (N, 4) whose norm is not 1 within ``tol``)."""
+    norm = np.linalg.norm(q, axis=1)
+    return norm, np.flatnonzero(np.abs(norm - 1.0) > tol)
+
+
 def quat_multiply(q1, q2):
     """Return the Hamilton product q1 * q2, (N, 4) scalar first (rotation q2 first, then q1)."""
     a, b = np.broadcast_arrays(_as_quats(q1, "q1"), _as_quats(q2, "q2"))
@@ -171,12 +177,11 @@ class Attitude:
         if not np.all(np.isfinite(q)):
             bad = np.flatnonzero(~np.all(np.isfinite(q), axis=1))
             raise ValueError(f"attitude quaternions in rows {bad[:10].tolist()} are not finite")
-        norm = np.linalg.norm(q, axis=1)
-        off = np.abs(norm - 1.0) > norm_tol
-        if np.any(off):
-            i = int(np.flatnonzero(off)[0])
+        norm, off = norm_outliers(q, norm_tol)
+        if off.size:
+            i = int(off[0])
             raise ValueError(f"attitude quaternion row {i} has norm {norm[i]:.6g}, not 1 within {norm_tol} "
-                             f"({int(off.sum())} such rows); check the column order and the scalar-first/last "
+                             f"({off.size} such rows); check the column order and the scalar-first/last "
                              "convention, or normalise the quaternions deliberately before using them")
         q = q / norm[:, None]
         if t_s is not None:

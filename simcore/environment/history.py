@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from simcore.environment import frames as _frames
-from simcore.environment.attitude import Attitude, _slerp, matrix_to_quat, quat_multiply
+from simcore.environment.attitude import Attitude, _slerp, matrix_to_quat, norm_outliers, quat_multiply
 from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError
 
@@ -70,7 +70,8 @@ class HistoryLimits:
     """The limits of :class:`AttitudeHistory`'s flags.
 
     ``max_gap_s`` = 30 s: three of OPS-SAT's 10 s steps; at the 2-5 deg/s a tumbling CubeSat turns, slerp
-    across 30 s can miss a change of axis by tens of degrees. ``max_rate_deg_s`` = 10 deg/s: above any rate
+    across 30 s can miss a change of axis by tens of degrees (a history sampled more coarsely throughout gets
+    3 x its median step instead: :data:`GAP_MEDIAN_FACTOR`). ``max_rate_deg_s`` = 10 deg/s: above any rate
     a coarse sun-sensor CubeSat keeps (OPS-SAT turns < 1 deg/s in 90 % of its steps; ~1 % of them read above
     10 deg/s: estimator jumps). ``min_frozen_s`` = 30 s: an estimate averaged over 10 s of a moving
     spacecraft does not repeat bit for bit for 3 steps. ``None`` switches a flag off.
@@ -142,12 +143,11 @@ class AttitudeHistory:
         if not np.all(np.isfinite(q)):
             i = int(np.flatnonzero(~np.all(np.isfinite(q), axis=1))[0])
             raise InvalidInputError(f"{where}attitude quaternion of sample {i} ({epochs[i].iso()[0]}) is not finite")
-        norm = np.linalg.norm(q, axis=1)
-        off = np.abs(norm - 1.0) > norm_tol
-        if np.any(off):
-            i = int(np.flatnonzero(off)[0])
+        norm, off = norm_outliers(q, norm_tol)
+        if off.size:
+            i = int(off[0])
             raise InvalidInputError(f"{where}attitude quaternion of sample {i} ({epochs[i].iso()[0]}) has norm "
-                                    f"{norm[i]:.6g}, not 1 within {norm_tol:g} ({int(off.sum())} such samples): "
+                                    f"{norm[i]:.6g}, not 1 within {norm_tol:g} ({off.size} such samples): "
                                     "check the column order and scalar position, or leave such rows out")
         q = q / norm[:, None]
         if not scalar_first:

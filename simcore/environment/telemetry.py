@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simcore.environment.attitude import norm_outliers
 from simcore.environment.epochs import Epochs
 from simcore.environment.history import AttitudeHistory, HistoryLimits, read_text
 from simcore.errors import InputNotFoundError, InvalidInputError
@@ -218,12 +219,11 @@ def read_opssat_attitude(path=OPSSAT_ATTITUDE, *, frame=OPSSAT_FRAME, limits=Non
 
 
 def _check_norms(q, where, tol):
-    norm = np.linalg.norm(q, axis=1)
-    off = np.abs(norm - 1.0) > tol
-    if np.any(off):
-        i = int(np.flatnonzero(off)[0])
+    norm, off = norm_outliers(q, tol)
+    if off.size:
+        i = int(off[0])
         raise InvalidInputError(f"{where[i]}: quaternion norm {norm[i]:.4g} is not 1 within {tol:g} "
-                                f"({int(off.sum())} such rows): not a 10-s average of attitudes; wrong column?")
+                                f"({off.size} such rows): not a 10-s average of attitudes; wrong column?")
 
 
 def read_opssat_pd(path=OPSSAT_PD):

@@ -339,7 +339,7 @@ class PreparedRun:
         a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
         s = g.sun_dir_body[sl]
         for k, d in enumerate(cfg.diodes):
-            if not isinstance(d.aperture, CircularWell):
+            if not isinstance(d.aperture, CircularWell) or cfg.body.none:     # no body: the model is exact
                 continue
             p = body_side_normal(d, cfg.body)       # its panel's normal (a diode on a part: the box face it lies beyond)
             # (a diode flat on its panel sees nothing below the panel's plane: never)
@@ -371,7 +371,7 @@ class PreparedRun:
         box = BodyBox.from_config(self.config)
         out = np.zeros(share.shape, bool)
         for k, frame in enumerate(np.asarray(self.config.frames)):
-            model = box_hit(box.positions_m[k], local @ frame, box.half_m).astype(float)
+            model = np.zeros(TH.shape) if box is None else box_hit(box.positions_m[k], local @ frame, box.half_m) * 1.0
             cell = np.isfinite(share[k]) & (share[k] != model)
             out[k] = widen_cells(cell)
         return out
@@ -421,7 +421,7 @@ class PreparedRun:
             v = self.visibility
             vis = DirectionVisibility(v.mask[idx], v.fine[idx], v.half[idx])
         alb = diode_irradiance(*args, direct=False, visibility=vis, **common, box_albedo=box_albedo,
-                               body=BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]),
+                               body=box and BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]),
                                glint=self.glint_on(reflectivity_map))
         res.albedo_w_m2[:, idx] = alb.albedo_w_m2
         for name in ("albedo_mesh_w_m2", "albedo_visibility_error_w_m2", "albedo_box_w_m2"):
@@ -444,7 +444,7 @@ class PreparedRun:
         n, K = sl.stop - sl.start, cfg.n_diodes
         out = np.zeros((n, K), bool)
         idx = [k for k, w in enumerate(cfg.windows) if w is not None]
-        if not idx:
+        if not idx or cfg.body.none:            # no body ([body] none): nothing shades a window
             return out
         dirs, _, ok, _ = self._sun_disc_probes(sl)
         box = BodyBox.from_config(cfg)

@@ -576,7 +576,9 @@ class BodyBox:
 
     @classmethod
     def from_config(cls, config):
-        """Return the body box of a ``scenes.config.SatelliteConfig``."""
+        """Return the body box of a ``scenes.config.SatelliteConfig``, or None where it has no body ([body] none)."""
+        if getattr(config.body, "none", False):
+            return None
         return cls(tuple(float(x) / 2 for x in config.body.size_m), np.asarray(config.positions_m, float),
                    np.array([body_side_normal(d, config.body) for d in config.diodes], float))
 
