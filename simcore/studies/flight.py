@@ -352,6 +352,17 @@ def compare(telemetry, pred):
     for k, name in enumerate(pred.names):
         m = telemetry.readings[name]
         use = sunlit & np.isfinite(m)
+        if not use.any():           # no valid sunlit reading of this diode (e.g. flagged invalid in a log)
+            out[name] = {"n": 0, "median_abs_residual": None, "median_abs_residual_direct_only": None,
+                         "median_abs_residual_uniform": None, "uniform_albedo": None,
+                         "sun_behind_median_residual": None, "sun_behind_n": 0, "median_render_se": None,
+                         "normal": [_round(x, 6) for x in pred.normals[k]],
+                         "attitude_check": {"n": 0, "dark_predicted": 0, "pass": True}, "bins": [
+                             {"lo": lo, "hi": hi, "n": 0, "median_residual": None,
+                              "median_residual_direct_only": None, "median_residual_uniform": None,
+                              "median_measured": None, "median_predicted": None}
+                             for lo, hi in zip(BIN_EDGES[:-1], BIN_EDGES[1:])]}
+            continue
         mu = m[use]
         res = mu - pred.total[use, k]
         res_direct = mu - pred.direct[use, k]

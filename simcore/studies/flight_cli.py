@@ -107,6 +107,9 @@ def _print(out):
     print(f"  {'diode':6} {'n':>6} {'median |res|':>13} {'direct only':>12} {'uniform':>8} {'albedo':>7} "
           f"{'sun behind':>11}")
     for name, d in out["diodes"].items():
+        if not d["n"]:
+            print(f"  {name:6} {0:6d}   (no valid sunlit reading)")
+            continue
         print(f"  {name:6} {d['n']:6d} {d['median_abs_residual']:13.4f} {d['median_abs_residual_direct_only']:12.4f} "
               f"{d['median_abs_residual_uniform']:8.4f} {d['uniform_albedo']:7.2f} "
               f"{d['sun_behind_median_residual'] if d['sun_behind_median_residual'] is not None else float('nan'):11.4f}")
@@ -120,7 +123,8 @@ def _print(out):
                  + "/".join("-" if b[k] is None else f"{b[k]:+.3f}" for k in
                             ("median_residual", "median_residual_direct_only", "median_residual_uniform"))
                  for b in d["bins"] if b["n"]]
-        print(f"  {name}: " + "; ".join(cells))
+        if cells:
+            print(f"  {name}: " + "; ".join(cells))
 
 
 def _fit(args, sat, pd, attitude, tle, scene):
