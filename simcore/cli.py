@@ -885,11 +885,8 @@ def build_parser():
 
     _add_attitude_study_parser(sub)
     _add_spectral_check_parser(sub)
-    from simcore.studies.flight_cli import add_arguments as _flight_arguments, main as _flight_main
-    fc = sub.add_parser("flight-check", help="predicted photodiode readings against a satellite's flight telemetry "
-                                             "(OPS-SAT), never fitted; --fit calibrates the scene's diodes")
-    _flight_arguments(fc)
-    fc.set_defaults(func=_flight_main)
+    from simcore.studies.flight_cli import add_parser as _add_flight_check_parser
+    _add_flight_check_parser(sub)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)

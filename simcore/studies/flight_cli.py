@@ -13,6 +13,15 @@ import numpy as np
 from simcore.errors import InvalidInputError
 
 
+def add_parser(sub):
+    """Add ``sunsim flight-check`` to the command line's subparsers ``sub``."""
+    p = sub.add_parser("flight-check", help="predicted photodiode readings against a satellite's flight telemetry "
+                                            "(OPS-SAT), never fitted; --fit calibrates the scene's diodes")
+    add_arguments(p)
+    p.set_defaults(func=main)
+    return p
+
+
 def add_arguments(p):
     """Add the options of ``sunsim flight-check`` to the parser ``p``."""
     from simcore.studies.flight import DEFAULT_MAP, SATELLITES
