@@ -911,6 +911,8 @@ def build_parser():
 
     _add_attitude_study_parser(sub)
     _add_spectral_check_parser(sub)
+    from simcore.studies.flight_cli import add_parser as _add_flight_check_parser
+    _add_flight_check_parser(sub)
 
     s = sub.add_parser("summary", help="orbit, Sun and eclipse summary of a study (no rendering)")
     _add_orbit_options(s)
