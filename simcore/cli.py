@@ -342,7 +342,7 @@ def cmd_validate(args):
 
 def _mekf_filter(args):
     """``sunsim estimate RUN.nc --filter mekf``: print the attitude-error summary (or JSON); exit status 0."""
-    from simcore.pipeline.evaluate_attitude import DEFAULT_GYRO, DEFAULT_MAGNETOMETER, run_mekf
+    from simcore.pipeline.evaluate_attitude import DEFAULT_GYRO, DEFAULT_MAGNETOMETER, run_mekf, summary_lines
     from simcore.pipeline.run import open_run
     from simcore.plots import plot_mekf
     from simcore.sensor.gyro import gyro_spec
@@ -361,29 +361,7 @@ def _mekf_filter(args):
     if args.json:
         print(json.dumps({"run": args.run, **s}))
         return 0
-    a = s["attitude_error_deg"]
-    print(f"{args.run}: {s['configuration']}, MEKF with {gyro} + {mag} + Sun sensor ({s['sun_vector']}), "
-          f"seed {s['seed']}, start {s['start']} at {s['start_s']:g} s")
-    print(f"  attitude error [deg]   {'n':>6} {'mean':>7} {'p95':>7} {'max':>7}")
-    for part in ("sunlit", "eclipse", "all"):
-        r = a[part]
-        if r["n"]:
-            print(f"  {part:<22} {r['n']:>6} {r['mean']:>7.3f} {r['p95']:>7.3f} {r['max']:>7.3f}")
-        else:
-            print(f"  {part:<22} {0:>6}       -       -       -")
-    print(f"  NEES in 95 % bounds: {s['nees_in_bounds']:.1%} (mean {s['nees_mean']}, sunlit {s['nees_mean_sunlit']}, "
-          f"3 dof); NIS of the Sun vector: mean {s['sun_nis_mean']} over the accepted updates (2 dof); "
-          f"converged (< {s['converged_below_deg']:g} deg for good) after {s['time_to_converge_s']} s")
-    sn = s["sun_noise"]
-    if sn["model"] == "derived":
-        print(f"  Sun-vector noise told: the chain's own, white (median {sn['white_deg_median']} deg), and the on-board "
-              f"albedo model's error {sn['albedo_model_deg']} deg, correlated over ~{sn['correlation_time_s_median']} s "
-              "(a state of the filter)")
-    else:
-        print(f"  Sun-vector noise told: {sn['fixed_deg']:.3g} deg, white")
-    print(f"  Sun updates {s['sun_updates']} (rejected {s['sun_rejected']}, no noise estimate {s['sun_skipped']}), "
-          f"magnetometer updates "
-          f"{s['mag_updates']} (rejected {s['mag_rejected']}); board {s['temperature_c'][0]}..{s['temperature_c'][1]} degC")
+    print("\n".join(summary_lines(args.run, s)))
     if args.plots:
         print(f"  plots: {', '.join(s['plots'])}")
     return 0

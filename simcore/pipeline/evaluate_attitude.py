@@ -280,6 +280,35 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
             "temperature_k": temp, "summary": summary}
 
 
+def summary_lines(run, s):
+    """Return the text report (lines) of :func:`run_mekf`'s summary ``s`` for run file ``run``."""
+    out = []
+    a = s["attitude_error_deg"]
+    out.append(f"{run}: {s['configuration']}, MEKF with {s['gyro']} + {s['magnetometer']} + Sun sensor ({s['sun_vector']}), "
+                   f"seed {s['seed']}, start {s['start']} at {s['start_s']:g} s")
+    out.append(f"  attitude error [deg]   {'n':>6} {'mean':>7} {'p95':>7} {'max':>7}")
+    for part in ("sunlit", "eclipse", "all"):
+        r = a[part]
+        if r["n"]:
+            out.append(f"  {part:<22} {r['n']:>6} {r['mean']:>7.3f} {r['p95']:>7.3f} {r['max']:>7.3f}")
+        else:
+            out.append(f"  {part:<22} {0:>6}       -       -       -")
+    out.append(f"  NEES in 95 % bounds: {s['nees_in_bounds']:.1%} (mean {s['nees_mean']}, sunlit {s['nees_mean_sunlit']}, "
+                   f"3 dof); NIS of the Sun vector: mean {s['sun_nis_mean']} over the accepted updates (2 dof); "
+                   f"converged (< {s['converged_below_deg']:g} deg for good) after {s['time_to_converge_s']} s")
+    sn = s["sun_noise"]
+    if sn["model"] == "derived":
+        out.append(f"  Sun-vector noise told: the chain's own, white (median {sn['white_deg_median']} deg), and the on-board "
+                   f"albedo model's error {sn['albedo_model_deg']} deg, correlated over ~{sn['correlation_time_s_median']} s "
+                   "(a state of the filter)")
+    else:
+        out.append(f"  Sun-vector noise told: {sn['fixed_deg']:.3g} deg, white")
+    out.append(f"  Sun updates {s['sun_updates']} (rejected {s['sun_rejected']}, no noise estimate {s['sun_skipped']}), "
+                   f"magnetometer updates "
+                   f"{s['mag_updates']} (rejected {s['mag_rejected']}); board {s['temperature_c'][0]}..{s['temperature_c'][1]} degC")
+    return out
+
+
 def albedo_model_error_deg(ds, path=None, *, onboard_map=None, diode="BPW34FS"):
     """Return the on-board albedo model's error of the model-albedo Sun vector, deg per axis, on run ``ds``.
 
