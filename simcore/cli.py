@@ -370,24 +370,27 @@ def _mekf_filter(args):
 def _sunline_filter(args):
     """``sunsim estimate RUN.nc --filter sunline-ekf|sunline-ukf``: a sun-line filter
     (simcore.pipeline.evaluate_sunline) over a run file; print its summary (or JSON)."""
-    from simcore.pipeline.evaluate_sunline import filter_run
+    from simcore.pipeline.evaluate_sunline import filter_run, parse_process_noise
     from simcore.pipeline.run import open_run
     from simcore.sensor.errors import check_faults, parse_faults, parse_sensor_errors
     errors, faults = parse_sensor_errors(args.sensor_errors), parse_faults(args.faults)
+    q_rate, q_sun = parse_process_noise(args.process_noise or "1e-13:0")
+    if args.use_threshold is not None and not 0 <= args.use_threshold < 1:
+        raise UserError(f"--use-threshold must be a reading in [0, 1) of the normal-Sun reading, got {args.use_threshold}")
     if args.gyro_noise is not None and not args.gyro_noise > 0:
         raise UserError(f"--gyro-noise must be the gyro's noise standard deviation, > 0 deg/s; got {args.gyro_noise}")
     ds = open_run(args.run)
     check_faults(faults, ds["t_s"].values, ds.sizes["diode"])
     return _print_filter_summary(args, filter_run(ds, args.filter, diode=args.diode, errors=errors, faults=faults,
-                                                  noise=args.noise, seed=args.seed,
-                                                  gyro_sigma_deg_s=args.gyro_noise))
+                                                  noise=args.noise, seed=args.seed, q_rate=q_rate, q_sun=q_sun,
+                                                  use_threshold=args.use_threshold, gyro_sigma_deg_s=args.gyro_noise))
 
 
 # sunsim estimate --filter NAME: one table, one entry per filter
 ESTIMATE_FILTERS = {"sunline-ekf": _sunline_filter, "sunline-ukf": _sunline_filter, "mekf": _mekf_filter}
 # the options that belong to each kind of filter
 _FILTER_OPTIONS = {
-    "sunline": ("--faults", "--sensor-errors", "--gyro-noise"),
+    "sunline": ("--faults", "--sensor-errors", "--gyro-noise", "--use-threshold", "--process-noise"),
     "mekf": ("--gyro", "--magnetometer", "--no-onboard-albedo", "--thermal-compensation", "--initial-error"),
 }
 
@@ -396,7 +399,8 @@ def _print_filter_summary(args, out):
     if args.json:
         print(json.dumps({"run": args.run, **out}))
         return 0
-    print(f"{args.run}: {out.get('run')}, {out['filter']}, sunlit errors (mean / p95 / max)")
+    print(f"{args.run}: {out.get('run')}, {out['filter']} (use threshold {out['use_threshold']:g}, process noise "
+          f"{out['q_rate']:g}:{out['q_sun']:g}), sunlit errors (mean / p95 / max)")
     rows = [(out["filter"], out["sun_error_deg"], out.get("rate_error_deg_s"))]
     rows += [(name, c["sun_error_deg"], c.get("rate_error_deg_s")) for name, c in out.get("compare", {}).items()]
     for name, sun, rate in rows:
@@ -415,6 +419,7 @@ def _print_filter_summary(args, out):
 def _check_filter_options(args):
     """Raise the user's mistake when a filter's options come without that filter."""
     given = {"--faults": args.faults, "--sensor-errors": args.sensor_errors, "--gyro-noise": args.gyro_noise,
+             "--use-threshold": args.use_threshold, "--process-noise": args.process_noise,
              "--gyro": args.gyro, "--magnetometer": args.magnetometer, "--no-onboard-albedo": args.no_onboard_albedo,
              "--thermal-compensation": args.thermal_compensation, "--initial-error": args.initial_error}
     kind = None if not args.filter else ("mekf" if args.filter == "mekf" else "sunline")
@@ -811,6 +816,10 @@ def build_parser():
     e.add_argument("--gyro-noise", type=float, metavar="DEG_S",
                    help="give a sun-line filter a gyro: the run's true body rate plus white noise of this standard "
                         "deviation")
+    e.add_argument("--use-threshold", type=float, metavar="U", help="sun-line filters: readings used from U up "
+                   "(normal-Sun units, Basilisk's sensorUseThresh; default 5 sigma of the noise)")
+    e.add_argument("--process-noise", metavar="Q_RATE[:Q_SUN]", help="sun-line filters: rate random walk "
+                   "(rad^2/s^3) and Sun-vector process noise (1/s), default 1e-13:0")
     _add_mekf_options(e)
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_estimate)
