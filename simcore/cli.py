@@ -399,20 +399,8 @@ def _print_filter_summary(args, out):
     if args.json:
         print(json.dumps({"run": args.run, **out}))
         return 0
-    print(f"{args.run}: {out.get('run')}, {out['filter']} (use threshold {out['use_threshold']:g}, process noise "
-          f"{out['q_rate']:g}:{out['q_sun']:g}), sunlit errors (mean / p95 / max)")
-    rows = [(out["filter"], out["sun_error_deg"], out.get("rate_error_deg_s"))]
-    rows += [(name, c["sun_error_deg"], c.get("rate_error_deg_s")) for name, c in out.get("compare", {}).items()]
-    for name, sun, rate in rows:
-        s = sun["sunlit"]
-        line = f"  {name:<16} Sun {s['mean']} / {s['p95']} / {s['max']} deg"
-        if rate:
-            r = rate["sunlit"]
-            line += f";  rate (perpendicular to the Sun) {r['mean']} / {r['p95']} / {r['max']} deg/s"
-        print(line)
-    for f, dt in zip(out.get("faults", []), out.get("first_rejection_after_onset_s", [])):
-        print(f"  fault {f['kind']} on diode {f['diode']} at {f['onset_s']:g} s: "
-              + ("never rejected" if dt is None else f"first rejected {dt:g} s after its onset"))
+    from simcore.pipeline.evaluate_sunline import summary_lines
+    print("\n".join(summary_lines(args.run, out)))
     return 0
 
 
@@ -619,6 +607,11 @@ def cmd_attitude_study(args):
     """MEKF per configuration x gyro x on-board albedo x seed on rendered runs, with a results page."""
     from simcore.studies.attitude import attitude_study, default_page
     log = (lambda m: print(m, file=sys.stderr))
+    if args.rate:
+        from simcore.studies.rate import rate_study
+        page = rate_study(args.rate, args.page or "docs/attitude_study", gyros=args.gyros, seeds=args.seeds, log=log)
+        print(f"rate section: {page}")
+        return 0
     res = attitude_study(args.folder, span=args.span, configs=args.configs, gyros=args.gyros, seeds=args.seeds,
                          magnetometer=args.magnetometer, page_folder=args.page, render=not args.no_render,
                          scheduler=args.scheduler, workers=args.workers,
@@ -649,6 +642,8 @@ def _add_attitude_study_parser(sub):
                    help="gyro bias temperature effect compensated on board (to 22 %%)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
     p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default %(default)s)")
+    p.add_argument("--rate", metavar="RUN.nc", help="only the rate section (simcore/studies/rate.py) from this run, "
+                   "into PAGE (default docs/attitude_study): rate.md, rate_results.json, rate_error.png")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_attitude_study)
     return p

@@ -99,7 +99,10 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
     body-frame attitude error (rotation vector, deg), ``error_deg`` (N,) its norm, ``nees`` (N,)
     attitude NEES (3 dof), ``sigma_deg`` (N, 3) the filter's 1-sigma per body axis, ``sunlit``
     and ``eclipse`` (N,) bool, ``sun_used`` / ``mag_used`` (N,) bool (accepted by the gate),
-    ``temperature_k`` (N,), and ``summary`` (JSON-able). ``thermal_compensation``: the gyro's bias
+    ``temperature_k`` (N,), the gyro's readings ``omega_meas``, the true mean rate over each step
+    ``omega_true`` and the filter's bias estimate ``bias_est`` (N, 3) rad/s (NaN before the start), the
+    Sun vector ``s_hat`` (N, 3) with its white noise variance ``var_sun`` and NIS ``nis_sun`` (N,), and
+    ``summary`` (JSON-able). ``thermal_compensation``: the gyro's bias
     temperature effect is compensated on board down to :data:`simcore.sensor.gyro.THERMAL_COMPENSATION_RESIDUAL`.
     """
     from estimators.advanced import model_albedo_direction_variance, model_albedo_estimate
@@ -190,6 +193,7 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
     nis_sun = np.full(n, np.nan)
     var_sun = np.full(n, np.nan)
     tau = np.full(n, np.nan)
+    bias_est = np.full((n, 3), np.nan)
     chain_sigma = SensorChain(diode=diode, noise=True).noise_std_w_m2(irr)
     s_hat = np.full((n, 3), np.nan)
     s_ok = np.zeros(n, bool)
@@ -226,6 +230,7 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
                 sun_used[k] = f.update_vector(s_hat[k], sun_ref[k], sig, colored=derived)
                 nis_sun[k] = f.last_nis
             q_est[k], P_att[k] = f.q, f.P[:3, :3]
+            bias_est[k] = f.bias
 
     # --- metrics ----------------------------------------------------------------------------------------
     started = np.arange(n) >= k0
@@ -276,7 +281,8 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
     }
     return {"t_s": t, "q_est": q_est, "q_true": q_true, "error_body_deg": err_deg, "error_deg": total,
             "nees": ns, "sigma_deg": np.degrees(np.sqrt(np.diagonal(P_att, axis1=1, axis2=2))),
-            "sunlit": sunlit, "eclipse": eclipse, "sun_used": sun_used, "s_hat": s_hat, "nis_sun": nis_sun, "var_sun": var_sun, "mag_used": mag_used,
+            "sunlit": sunlit, "eclipse": eclipse, "sun_used": sun_used, "s_hat": s_hat, "nis_sun": nis_sun, "var_sun": var_sun,
+            "omega_meas": omega, "omega_true": w_true, "bias_est": bias_est, "mag_used": mag_used,
             "temperature_k": temp, "summary": summary}
 
 

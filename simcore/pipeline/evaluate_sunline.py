@@ -269,3 +269,23 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
                   "wls": wls, "sun_albedo_sun": sas, "sun_true": sun_true, "rate_true": w_true, "sunlit": sunlit}
         return out, series
     return out
+
+
+def summary_lines(run, out):
+    """Return the text report (lines) of :func:`filter_run`'s summary ``out`` for run file ``run``."""
+    lines = []
+    lines.append(f"{run}: {out.get('run')}, {out['filter']} (use threshold {out['use_threshold']:g}, process noise "
+                 f"{out['q_rate']:g}:{out['q_sun']:g}), sunlit errors (mean / p95 / max)")
+    rows = [(out["filter"], out["sun_error_deg"], out.get("rate_error_deg_s"))]
+    rows += [(name, c["sun_error_deg"], c.get("rate_error_deg_s")) for name, c in out.get("compare", {}).items()]
+    for name, sun, rate in rows:
+        s = sun["sunlit"]
+        line = f"  {name:<16} Sun {s['mean']} / {s['p95']} / {s['max']} deg"
+        if rate:
+            r = rate["sunlit"]
+            line += f";  rate (perpendicular to the Sun) {r['mean']} / {r['p95']} / {r['max']} deg/s"
+        lines.append(line)
+    for f, dt in zip(out.get("faults", []), out.get("first_rejection_after_onset_s", [])):
+        lines.append(f"  fault {f['kind']} on diode {f['diode']} at {f['onset_s']:g} s: "
+                     + ("never rejected" if dt is None else f"first rejected {dt:g} s after its onset"))
+    return lines
