@@ -261,7 +261,9 @@ def model_albedo_estimate(e_p, normals, e_alb_pred, *, fov_deg, e_s0, live=None,
             seed = np.where(ok[:, None], s_new, seed)
             have_seed = have_seed | ok
     if return_details:
-        return s_hat, valid, {"gain": k, "n_sun": sun.sum(axis=1), "n_dark": n_dark}
+        dark_final = usable & ~sun & dark if fit_gain else np.zeros_like(sun)
+        return s_hat, valid, {"gain": k, "n_sun": sun.sum(axis=1), "n_dark": n_dark, "sun": sun,
+                              "dark": dark_final}
     return s_hat, valid
 
 
@@ -299,3 +301,48 @@ def _fit_sun_and_gain(h, e, a, sun, dark, k0, lo, hi):
     s_vec = z - k[:, None] * y
     s_vec[~ok] = np.nan
     return s_vec, k, ok
+
+
+def model_albedo_direction_variance(normals, e_alb_pred, s_hat, sun, dark, sigma_e, sun_level, fit_gain=True):
+    """Return the variance (N,) per perpendicular axis, rad^2, of :func:`model_albedo_estimate`'s Sun direction.
+
+    First-order propagation of independent reading errors of standard deviation ``sigma_e``
+    (N, K), effective W/m^2, through the least-squares fit the estimate made on its final
+    selection (``return_details``: ``sun`` and ``dark`` (N, K) bool): rows [n_i, a_i] for the
+    Sun diodes and [0, a_i] for the dark ones (the gain column only with ``fit_gain`` and where
+    the readings determine the gain; elsewhere the gain is fixed and the fit is S alone on the Sun
+    diodes). The unweighted fit x = (A^T A)^-1 A^T y has covariance
+    (A^T A)^-1 A^T diag(sigma^2) A (A^T A)^-1; the unit vector s = S / |S| moves by the part of dS
+    perpendicular to s over |S| = ``sun_level`` (the normal-Sun reading E_S0), so the variance per
+    axis is half the trace of (I - s s^T) Cov(S) (I - s s^T) / |S|^2. NaN where fewer than three
+    non-coplanar Sun diodes were used.
+    """
+    h = np.asarray(normals, dtype=float)
+    a = np.nan_to_num(np.asarray(e_alb_pred, dtype=float))
+    sun, dark = np.asarray(sun, bool), np.asarray(dark, bool) & bool(fit_gain)
+    sig2 = np.asarray(sigma_e, dtype=float) ** 2
+    s = np.nan_to_num(np.asarray(s_hat, dtype=float))
+    perp = np.eye(3) - s[:, :, None] * s[:, None, :]
+
+    def cov_s(cols):
+        used = sun | dark if cols == 4 else sun
+        A = np.zeros(a.shape + (cols,))
+        A[:, :, :3] = np.where(sun[:, :, None], h[None], 0.0)
+        if cols == 4:
+            A[:, :, 3] = np.where(used, a, 0.0)
+        M = np.einsum("nki,nkj->nij", A, A)
+        ok = _spans(h, sun)
+        if cols == 4:   # the gain is determined where the estimate fitted it (its Schur-complement test)
+            m_ss = np.where(ok[:, None, None], M[:, :3, :3], np.eye(3))
+            schur = M[:, 3, 3] - np.einsum("ni,ni->n", M[:, :3, 3], np.linalg.solve(m_ss, M[:, :3, 3:])[:, :, 0])
+            ok = ok & (M[:, 3, 3] > 0) & (schur > GAIN_INFO_RTOL * M[:, 3, 3])
+        Minv = np.linalg.inv(np.where(ok[:, None, None], M, np.eye(cols)))
+        c = (Minv @ np.einsum("nki,nk,nkj->nij", A, np.where(used, sig2, 0.0), A) @ Minv)[:, :3, :3]
+        return c, ok
+
+    cov, ok = cov_s(3)
+    if fit_gain:
+        cov4, ok4 = cov_s(4)
+        cov = np.where(ok4[:, None, None], cov4, cov)
+    var = 0.5 * np.trace(perp @ cov @ perp, axis1=1, axis2=2) / float(sun_level) ** 2
+    return np.where(ok, var, np.nan)

@@ -175,36 +175,68 @@ class MEKF:
     ``sigma_v``: gyro angle random walk, rad/s/sqrt(Hz); ``sigma_u``: bias random walk,
     rad/s^(3/2); ``gate``: the innovation-gating threshold on the normalised innovation squared
     (default: chi-square 2 dof at 0.9999).
+
+    ``colored_sigma_rad``: the state is augmented by a time-correlated error ``c`` (3, body
+    frame, rad) of one vector measurement (measurement noise coloured in time, handled by
+    state augmentation: Bryson & Henrikson 1968; Gelb, Applied Optimal Estimation, 1974,
+    sec. 4.5): a first-order Gauss-Markov process of standard deviation ``colored_sigma_rad``
+    per axis and correlation time ``tau_s`` (given to :meth:`predict`), fused by
+    ``update_vector(..., colored=True)``, which then reads b_meas = b_true + c + white noise.
+    A white-noise filter would average the correlated error over many updates as if it were
+    independent and grow overconfident; the augmented filter carries it, so both the
+    innovations (NIS) and the attitude errors (NEES) keep their chi-square means. ``P`` is then
+    (9, 9); :attr:`colored` holds c's estimate.
     """
 
-    def __init__(self, q0_ref_from_body, bias0_rad_s, P0, *, sigma_v, sigma_u, gate=CHI2_2DOF_GATE_99_99):
+    def __init__(self, q0_ref_from_body, bias0_rad_s, P0, *, sigma_v, sigma_u, gate=CHI2_2DOF_GATE_99_99,
+                 colored_sigma_rad=None):
         self.q = _unit(np.asarray(q0_ref_from_body, dtype=float).reshape(4))
         self.bias = np.asarray(bias0_rad_s, dtype=float).reshape(3).copy()
-        self.P = np.asarray(P0, dtype=float).reshape(6, 6).copy()
+        P = np.asarray(P0, dtype=float).reshape(6, 6).copy()
         self.sigma_v, self.sigma_u, self.gate = float(sigma_v), float(sigma_u), float(gate)
+        self.colored_sigma = None if colored_sigma_rad is None else float(colored_sigma_rad)
+        if self.colored_sigma is not None:
+            if not (np.isfinite(self.colored_sigma) and self.colored_sigma > 0):
+                raise ValueError(f"colored_sigma_rad must be a positive angle in rad, got {colored_sigma_rad}")
+            P = np.block([[P, np.zeros((6, 3))], [np.zeros((3, 6)), self.colored_sigma ** 2 * np.eye(3)]])
+        self.P = P
+        self.colored = np.zeros(3)
         self.last_nis = np.nan
 
     @property
     def R_ref_from_body(self):
         return quat_to_dcm(self.q)
 
-    def predict(self, omega_meas_rad_s, dt_s):
-        """Propagate over ``dt_s`` with the gyro's mean rate over the step (body frame, rad/s)."""
+    def predict(self, omega_meas_rad_s, dt_s, tau_s=None):
+        """Propagate over ``dt_s`` with the gyro's mean rate over the step (body frame, rad/s).
+
+        ``tau_s``: the correlation time of the coloured measurement error (needed with
+        ``colored_sigma_rad``): c decays by phi = exp(-dt/tau) and gains variance sigma^2 (1 - phi^2).
+        """
         w = np.asarray(omega_meas_rad_s, dtype=float) - self.bias
         dq = rotvec_to_quat(w * dt_s)
         self.q = _unit(quat_mul(self.q, dq))
         # Transition of the body-frame error: dtheta' = -[w x] dtheta - db (exact rotation for the first block).
-        Phi = np.eye(6)
+        m = self.P.shape[0]
+        Phi = np.eye(m)
         Phi[:3, :3] = quat_to_dcm(dq).T
-        Phi[:3, 3:] = -np.eye(3) * dt_s
+        Phi[:3, 3:6] = -np.eye(3) * dt_s
         sv2, su2 = self.sigma_v ** 2, self.sigma_u ** 2
-        Q = np.zeros((6, 6))
+        Q = np.zeros((m, m))
         Q[:3, :3] = (sv2 * dt_s + su2 * dt_s ** 3 / 3.0) * np.eye(3)
-        Q[:3, 3:] = Q[3:, :3] = -(su2 * dt_s ** 2 / 2.0) * np.eye(3)
-        Q[3:, 3:] = su2 * dt_s * np.eye(3)
+        Q[:3, 3:6] = Q[3:6, :3] = -(su2 * dt_s ** 2 / 2.0) * np.eye(3)
+        Q[3:6, 3:6] = su2 * dt_s * np.eye(3)
+        if self.colored_sigma is not None:
+            if tau_s is None or not (tau_s > 0):
+                raise ValueError(f"a filter with a coloured measurement error needs its correlation time tau_s > 0, "
+                                 f"got {tau_s}")
+            phi = float(np.exp(-dt_s / tau_s))
+            Phi[6:, 6:] = phi * np.eye(3)
+            Q[6:, 6:] = self.colored_sigma ** 2 * (1.0 - phi * phi) * np.eye(3)
+            self.colored = phi * self.colored
         self.P = Phi @ self.P @ Phi.T + Q
 
-    def update_vector(self, b_meas_body, r_ref, sigma_rad):
+    def update_vector(self, b_meas_body, r_ref, sigma_rad, colored=False):
         """Fuse one unit-vector measurement; return True if accepted by the innovation gate.
 
         Only the two components perpendicular to the predicted vector carry attitude
@@ -212,28 +244,39 @@ class MEKF:
         second order in the error, cos(angle) - 1, and would make a large but correct
         innovation look like an outlier): the update uses those two, with noise sigma^2 each
         (Shuster's QUEST measurement model, M&C eq. 5.31, restricted to its range).
+        ``colored``: the measurement carries the augmented coloured error c besides its white
+        noise ``sigma_rad`` (b_meas = b_true + c_perp). :attr:`last_nis` holds the normalised
+        innovation squared (2 dof) of the last call.
         """
+        if colored and self.colored_sigma is None:
+            raise ValueError("colored=True needs a filter made with colored_sigma_rad")
         b_meas = _unit(b_meas_body)
         b_pred = self.R_ref_from_body.T @ _unit(r_ref)
         # An orthonormal basis (e1, e2) of the plane perpendicular to b_pred.
         helper = np.eye(3)[int(np.argmin(np.abs(b_pred)))]
         e1 = _unit(np.cross(b_pred, helper))
         E = np.stack([e1, np.cross(b_pred, e1)])             # (2, 3)
-        H = np.zeros((2, 6))
+        m = self.P.shape[0]
+        H = np.zeros((2, m))
         H[:, :3] = E @ _skew(b_pred)
-        S = H @ self.P @ H.T + (sigma_rad ** 2) * np.eye(2)
         nu = E @ b_meas
+        if colored:
+            H[:, 6:] = E
+            nu = nu - E @ self.colored
+        S = H @ self.P @ H.T + (sigma_rad ** 2) * np.eye(2)
         nis = float(nu @ np.linalg.solve(S, nu))
         self.last_nis = nis
         if not np.isfinite(nis) or nis > self.gate:
             return False
         K = np.linalg.solve(S, H @ self.P).T
         dx = K @ nu
-        I_KH = np.eye(6) - K @ H
+        I_KH = np.eye(m) - K @ H
         self.P = I_KH @ self.P @ I_KH.T + (sigma_rad ** 2) * K @ K.T     # Joseph form
         self.P = 0.5 * (self.P + self.P.T)
         self.q = _unit(quat_mul(self.q, rotvec_to_quat(dx[:3])))
-        self.bias = self.bias + dx[3:]
+        self.bias = self.bias + dx[3:6]
+        if m > 6:
+            self.colored = self.colored + dx[6:]
         return True
 
 

@@ -360,7 +360,7 @@ def cmd_validate(args):
 
 def _mekf_filter(args):
     """``sunsim estimate RUN.nc --filter mekf``: print the attitude-error summary (or JSON); exit status 0."""
-    from simcore.pipeline.evaluate_attitude import DEFAULT_GYRO, DEFAULT_MAGNETOMETER, run_mekf
+    from simcore.pipeline.evaluate_attitude import DEFAULT_GYRO, DEFAULT_MAGNETOMETER, run_mekf, summary_lines
     from simcore.pipeline.run import open_run
     from simcore.plots import plot_mekf
     from simcore.sensor.gyro import gyro_spec
@@ -379,20 +379,7 @@ def _mekf_filter(args):
     if args.json:
         print(json.dumps({"run": args.run, **s}))
         return 0
-    a = s["attitude_error_deg"]
-    print(f"{args.run}: {s['configuration']}, MEKF with {gyro} + {mag} + Sun sensor ({s['sun_vector']}), "
-          f"seed {s['seed']}, start {s['start']} at {s['start_s']:g} s")
-    print(f"  attitude error [deg]   {'n':>6} {'mean':>7} {'p95':>7} {'max':>7}")
-    for part in ("sunlit", "eclipse", "all"):
-        r = a[part]
-        if r["n"]:
-            print(f"  {part:<22} {r['n']:>6} {r['mean']:>7.3f} {r['p95']:>7.3f} {r['max']:>7.3f}")
-        else:
-            print(f"  {part:<22} {0:>6}       -       -       -")
-    print(f"  NEES in 95 % bounds: {s['nees_in_bounds']:.1%} (mean {s['nees_mean']}, 3 dof); "
-          f"converged (< {s['converged_below_deg']:g} deg for good) after {s['time_to_converge_s']} s")
-    print(f"  Sun updates {s['sun_updates']} (rejected {s['sun_rejected']}), magnetometer updates "
-          f"{s['mag_updates']} (rejected {s['mag_rejected']}); board {s['temperature_c'][0]}..{s['temperature_c'][1]} degC")
+    print("\n".join(summary_lines(args.run, s)))
     if args.plots:
         print(f"  plots: {', '.join(s['plots'])}")
     return 0
@@ -401,24 +388,27 @@ def _mekf_filter(args):
 def _sunline_filter(args):
     """``sunsim estimate RUN.nc --filter sunline-ekf|sunline-ukf``: a sun-line filter
     (simcore.pipeline.evaluate_sunline) over a run file; print its summary (or JSON)."""
-    from simcore.pipeline.evaluate_sunline import filter_run
+    from simcore.pipeline.evaluate_sunline import filter_run, parse_process_noise
     from simcore.pipeline.run import open_run
     from simcore.sensor.errors import check_faults, parse_faults, parse_sensor_errors
     errors, faults = parse_sensor_errors(args.sensor_errors), parse_faults(args.faults)
+    q_rate, q_sun = parse_process_noise(args.process_noise or "1e-13:0")
+    if args.use_threshold is not None and not 0 <= args.use_threshold < 1:
+        raise UserError(f"--use-threshold must be a reading in [0, 1) of the normal-Sun reading, got {args.use_threshold}")
     if args.gyro_noise is not None and not args.gyro_noise > 0:
         raise UserError(f"--gyro-noise must be the gyro's noise standard deviation, > 0 deg/s; got {args.gyro_noise}")
     ds = open_run(args.run)
     check_faults(faults, ds["t_s"].values, ds.sizes["diode"])
     return _print_filter_summary(args, filter_run(ds, args.filter, diode=args.diode, errors=errors, faults=faults,
-                                                  noise=args.noise, seed=args.seed,
-                                                  gyro_sigma_deg_s=args.gyro_noise))
+                                                  noise=args.noise, seed=args.seed, q_rate=q_rate, q_sun=q_sun,
+                                                  use_threshold=args.use_threshold, gyro_sigma_deg_s=args.gyro_noise))
 
 
 # sunsim estimate --filter NAME: one table, one entry per filter
 ESTIMATE_FILTERS = {"sunline-ekf": _sunline_filter, "sunline-ukf": _sunline_filter, "mekf": _mekf_filter}
 # the options that belong to each kind of filter
 _FILTER_OPTIONS = {
-    "sunline": ("--faults", "--sensor-errors", "--gyro-noise"),
+    "sunline": ("--faults", "--sensor-errors", "--gyro-noise", "--use-threshold", "--process-noise"),
     "mekf": ("--gyro", "--magnetometer", "--no-onboard-albedo", "--thermal-compensation", "--initial-error"),
 }
 
@@ -427,25 +417,15 @@ def _print_filter_summary(args, out):
     if args.json:
         print(json.dumps({"run": args.run, **out}))
         return 0
-    print(f"{args.run}: {out.get('run')}, {out['filter']}, sunlit errors (mean / p95 / max)")
-    rows = [(out["filter"], out["sun_error_deg"], out.get("rate_error_deg_s"))]
-    rows += [(name, c["sun_error_deg"], c.get("rate_error_deg_s")) for name, c in out.get("compare", {}).items()]
-    for name, sun, rate in rows:
-        s = sun["sunlit"]
-        line = f"  {name:<16} Sun {s['mean']} / {s['p95']} / {s['max']} deg"
-        if rate:
-            r = rate["sunlit"]
-            line += f";  rate (perpendicular to the Sun) {r['mean']} / {r['p95']} / {r['max']} deg/s"
-        print(line)
-    for f, dt in zip(out.get("faults", []), out.get("first_rejection_after_onset_s", [])):
-        print(f"  fault {f['kind']} on diode {f['diode']} at {f['onset_s']:g} s: "
-              + ("never rejected" if dt is None else f"first rejected {dt:g} s after its onset"))
+    from simcore.pipeline.evaluate_sunline import summary_lines
+    print("\n".join(summary_lines(args.run, out)))
     return 0
 
 
 def _check_filter_options(args):
     """Raise the user's mistake when a filter's options come without that filter."""
     given = {"--faults": args.faults, "--sensor-errors": args.sensor_errors, "--gyro-noise": args.gyro_noise,
+             "--use-threshold": args.use_threshold, "--process-noise": args.process_noise,
              "--gyro": args.gyro, "--magnetometer": args.magnetometer, "--no-onboard-albedo": args.no_onboard_albedo,
              "--thermal-compensation": args.thermal_compensation, "--initial-error": args.initial_error}
     kind = None if not args.filter else ("mekf" if args.filter == "mekf" else "sunline")
@@ -645,6 +625,11 @@ def cmd_attitude_study(args):
     """MEKF per configuration x gyro x on-board albedo x seed on rendered runs, with a results page."""
     from simcore.studies.attitude import attitude_study, default_page
     log = (lambda m: print(m, file=sys.stderr))
+    if args.rate:
+        from simcore.studies.rate import rate_study
+        page = rate_study(args.rate, args.page or "docs/attitude_study", gyros=args.gyros, seeds=args.seeds, log=log)
+        print(f"rate section: {page}")
+        return 0
     res = attitude_study(args.folder, span=args.span, configs=args.configs, gyros=args.gyros, seeds=args.seeds,
                          magnetometer=args.magnetometer, page_folder=args.page, render=not args.no_render,
                          scheduler=args.scheduler, workers=args.workers,
@@ -675,6 +660,8 @@ def _add_attitude_study_parser(sub):
                    help="gyro bias temperature effect compensated on board (to 22 %%)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
     p.add_argument("--workers", type=int, default=2, help="workers of the local cluster (default %(default)s)")
+    p.add_argument("--rate", metavar="RUN.nc", help="only the rate section (simcore/studies/rate.py) from this run, "
+                   "into PAGE (default docs/attitude_study): rate.md, rate_results.json, rate_error.png")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_attitude_study)
     return p
@@ -853,6 +840,10 @@ def build_parser():
     e.add_argument("--gyro-noise", type=float, metavar="DEG_S",
                    help="give a sun-line filter a gyro: the run's true body rate plus white noise of this standard "
                         "deviation")
+    e.add_argument("--use-threshold", type=float, metavar="U", help="sun-line filters: readings used from U up "
+                   "(normal-Sun units, Basilisk's sensorUseThresh; default 5 sigma of the noise)")
+    e.add_argument("--process-noise", metavar="Q_RATE[:Q_SUN]", help="sun-line filters: rate random walk "
+                   "(rad^2/s^3) and Sun-vector process noise (1/s), default 1e-13:0")
     _add_mekf_options(e)
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_estimate)

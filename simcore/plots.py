@@ -840,3 +840,28 @@ def plot_attitude_bars(cells, configs, gyros, ylabel, path=None):
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+def plot_rate_error(rows, requirement_deg_s_rthz, path=None):
+    """Return a Figure of the estimated rate's rms error against the averaging window per gyro (log-log), with
+    the raw and filtered errors at the first window and the requirement N_req / sqrt(T); ``path`` writes it."""
+    fig = _figure(7, 4.5)
+    ax = fig.subplots()
+    for i, (g, r) in enumerate(rows.items()):
+        w = np.asarray(r["windows_s"], dtype=float)
+        line, = ax.plot(w, r["averaged_deg_s"], "o-", label=f"{g}: filtered, averaged over T")
+        ax.plot([w[0] * 0.7], [r["raw_deg_s"]], "v", color=line.get_color(),
+                label="raw reading (bias in)" if i == 0 else None)
+        ax.plot(w, r["data_sheet_density_deg_s_rthz"] / np.sqrt(w), ":", color=line.get_color(), lw=1,
+                label="data sheet's white noise alone" if i == 0 else None)
+    w = np.asarray(next(iter(rows.values()))["windows_s"], dtype=float)
+    ax.plot(w, requirement_deg_s_rthz / np.sqrt(w), "k-", lw=2, label="requirement 0.0002 / sqrt(T) (thesis 3.1.2)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("averaging window T [s]")
+    ax.set_ylabel("rms rate error per axis [deg/s]")
+    ax.set_title("estimated body rate against the controller's requirement")
+    ax.legend(fontsize=7)
+    if path is not None:
+        save_figure(fig, path)
+    return fig

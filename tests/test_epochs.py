@@ -81,3 +81,42 @@ def test_far_future_dates_do_not_warn():
     # erfa warns "dubious year" past its leap-second table; the suite turns warnings into errors.
     tt1, tt2 = Epochs.from_any("2040-01-01T00:00:00Z").tt()
     assert np.isfinite(tt1 + tt2).all()
+
+
+# ---- leap seconds (issue 33 item 7) -------------------------------------------------------------
+# 2016-12-31 and 2015-06-30 ended in a leap second (IERS Bulletin C 52 and 49); 2016-07-02 did not.
+@pytest.mark.parametrize("day, next_day", [("2016-12-31", "2017-01-01"), ("2015-06-30", "2015-07-01")])
+def test_leap_second_lies_between_its_neighbours(day, next_day):
+    before, leap, after = Epochs.from_any([f"{day}T23:59:59Z", f"{day}T23:59:60Z", f"{next_day}T00:00:00Z"])
+    assert leap.seconds_since(before)[0] == pytest.approx(1.0, abs=1e-6)
+    assert after.seconds_since(leap)[0] == pytest.approx(1.0, abs=1e-6)
+    # the same in TAI, SOFA's own reading of the leap second (independent of our arithmetic)
+    tai = [e.tai() for e in (before, leap, after)]
+    gaps = [((tai[i + 1][0] - tai[i][0]) + (tai[i + 1][1] - tai[i][1]))[0] * 86400 for i in range(2)]
+    assert gaps == [pytest.approx(1.0, abs=1e-6)] * 2
+    assert leap.iso() == [f"{day}T23:59:60.000Z"]
+    assert (before + 1.0).iso() == [f"{day}T23:59:60.000Z"] and (leap + 1.0).iso() == [f"{next_day}T00:00:00.000Z"]
+
+
+def test_leap_second_matches_erfa_and_keeps_offsets():
+    j1, j2 = erfa.dtf2d("UTC", 2016, 12, 31, 23, 59, 60.5)
+    e = Epochs.from_any("2016-12-31T23:59:60.5Z")
+    assert (e.jd1[0] - j1) + (e.jd2[0] - j2) == pytest.approx(0.0, abs=1e-11)
+    assert Epochs.from_any("2017-01-01T00:59:60.5+01:00") == e
+
+
+def test_range_across_a_leap_second_counts_si_seconds():
+    e = Epochs.range("2016-12-31T23:59:58Z", duration_s=4, step_s=1)
+    assert e.iso() == ["2016-12-31T23:59:58.000Z", "2016-12-31T23:59:59.000Z", "2016-12-31T23:59:60.000Z",
+                       "2017-01-01T00:00:00.000Z"]
+    np.testing.assert_allclose(e.seconds_since(e[0]), [0.0, 1.0, 2.0, 3.0], atol=1e-6)
+
+
+@pytest.mark.parametrize("bad, match", [
+    ("2016-07-02T23:59:60Z", "2016-07-02 has no leap second"),
+    ("2016-12-31T12:00:60Z", "only as 23:59:60"),
+])
+def test_second_60_refused_where_there_is_no_leap_second(bad, match):
+    from simcore.errors import InvalidInputError
+    with pytest.raises(InvalidInputError, match=match):
+        Epochs.from_any(bad)

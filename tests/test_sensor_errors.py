@@ -150,10 +150,11 @@ def test_fault_stuck_current_holds_the_last_value_before_the_onset():
 
 def _fault_noise():
     # Basilisk's fault noise, drawn after the white noise from the same generator (apply_errors' order):
-    # a walk of step 0.75 clamped to +-2, then the saturation floor 0
+    # a walk of step 0.5 (Basilisk faultNoiseStd default, coarseSunSensor.cpp constructor; its 1.5x multiplier
+    # was removed in December 2024, commit 93e7b05) clamped to +-2, then the saturation floor 0
     rng = np.random.default_rng(ERR.seed)
     rng.standard_normal((N, K))
-    return np.clip(bounded_random_walk(N, K, 0.75, FAULT_NOISE_BOUND, rng)[:, DIODE], 0.0, None)
+    return np.clip(bounded_random_walk(N, K, 0.5, FAULT_NOISE_BOUND, rng)[:, DIODE], 0.0, None)
 
 
 def test_fault_stuck_rand_holds_one_random_value():

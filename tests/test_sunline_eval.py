@@ -144,3 +144,45 @@ def test_basilisk_response_replaces_the_traced_direct_part(ds):
     edge = (c < np.cos(np.radians(72.0))) & (c > np.cos(np.radians(80.0)))
     assert np.abs(u0 - traced)[inner].max() < 0.01
     assert np.abs(u0 - traced)[edge].max() > 0.02
+
+
+def test_user_alignment_moves_only_that_diode_by_the_cosine_law(ds):
+    # Issue 33 item 6: align=DIODE:DTHETA:DPHI turns one diode as Basilisk's
+    # setUnitDirectionVectorWithPerturbation; inside its FOV the direct part moves by E_sun (n' - n) . s.
+    k = 2
+    u, normals_true = true_signals(ds, SensorErrors(align=((k, 1.0, -0.5),)))
+    u0, normals_nom = true_signals(ds, SensorErrors())
+    n = normals_nom[k]
+    theta, phi = np.arctan2(n[1], n[0]) + np.radians(1.0), np.arcsin(n[2]) + np.radians(-0.5)
+    np.testing.assert_allclose(normals_true[k], [np.cos(phi) * np.cos(theta), np.cos(phi) * np.sin(theta),
+                                                 np.sin(phi)], atol=1e-12)
+    others = np.arange(len(normals_nom)) != k
+    np.testing.assert_array_equal(u[:, others], u0[:, others])
+    sun = ds["sun_dir_body"].values
+    inside = (sun @ normals_true[k] > np.cos(np.radians(60))) & (sun @ n > np.cos(np.radians(60)))
+    assert inside.sum() > 50
+    sun_factor = ds["sun_scale"].values * ds["illumination"].values
+    np.testing.assert_allclose((u - u0)[inside, k], (sun @ (normals_true[k] - n) * sun_factor)[inside], atol=1e-12)
+
+
+def test_cli_use_threshold_and_process_noise_reach_the_filter(run_path, capsys):
+    # Issue 33 item 6: Basilisk's sun-line filters take sensorUseThresh and the process noise as inputs.
+    base = filter_run(open_run(run_path), "sunline-ekf")
+    rc = main(["estimate", run_path, "--filter", "sunline-ekf", "--use-threshold", "0.45",
+               "--process-noise", "1e-9:1e-5", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0
+    assert (out["use_threshold"], out["q_rate"], out["q_sun"]) == (0.45, 1e-9, 1e-5)
+    assert out["sun_error_deg"] != base["sun_error_deg"]
+    assert base["q_rate"] == 1e-13 and base["use_threshold"] < 0.05     # the defaults: 5 sigma of the noise
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--filter", "sunline-ekf", "--process-noise", "1e-9:x"], "--process-noise '1e-9:x': give Q_RATE[:Q_SUN]"),
+    (["--filter", "sunline-ekf", "--use-threshold", "1.5"], "--use-threshold must be a reading in [0, 1)"),
+    (["--filter", "mekf", "--use-threshold", "0.3"], "--use-threshold only go with --filter sunline-ekf"),
+])
+def test_cli_bad_filter_tuning_is_one_line_exit_2(run_path, capsys, extra, message):
+    assert main(["estimate", run_path, *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]

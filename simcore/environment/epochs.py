@@ -9,10 +9,21 @@ far below anything SGP4 or the sensor can resolve.
 
 ISO-8601 strings, :class:`datetime.datetime` and :class:`numpy.datetime64`
 are accepted at the edge (:meth:`Epochs.from_any`); naive datetimes and
-strings without an offset are taken as UTC. Like sgp4's ``jday`` and numpy,
-a UTC day is counted as 86 400 s when converting from calendar values;
-leap seconds enter where they matter, in :meth:`Epochs.tt` (via erfa).
+strings without an offset are taken as UTC.
+
+Leap seconds: the pair is in SOFA/erfa's UTC convention (``erfa.dtf2d``): the
+fraction ``jd2`` is a share of *that day's* length, 86 401 s on a day that ends
+in a leap second, so ``23:59:60.x`` on such a day is an instant of its own,
+one SI second after 23:59:59.x and one before the next day's 00:00:00.x. On
+every other day this is the ordinary 86 400-s Julian date. An ISO string with
+second 60 is accepted on a day with a leap second (erfa's table) and refused
+on any other. Arithmetic (:meth:`Epochs.__add__`, :meth:`Epochs.seconds_since`)
+counts SI seconds, so a span that holds a leap second is one second longer in
+UTC labels than its SI length suggests. numpy's datetime64 has no leap second:
+:attr:`Epochs.datetime64` shows an instant inside one as the last nanosecond of
+its day (the run file's ``t_s`` keeps the SI seconds).
 """
+import re
 import datetime as _dt
 import warnings
 
@@ -29,8 +40,34 @@ _FORMATS = ("an ISO-8601 string such as '2016-07-02T00:00:00Z', a "
             "datetime.datetime, a numpy.datetime64, or a list/array of these")
 
 
+_LEAP_SECOND = re.compile(r"^(?P<head>.*[T ]\d{2}:\d{2}):60(?P<frac>[.,]\d+)?(?P<tail>.*)$")
+
+
+def _leap_second(value, text):
+    """Return (jd1, jd2) of an ISO string whose seconds field is 60 (a leap second), or refuse it."""
+    m = _LEAP_SECOND.match(text)
+    frac = float("0" + m["frac"].replace(",", ".")) if m["frac"] else 0.0
+    try:   # second 59 of the same minute, to read the date and the offset with the standard parser
+        before = _dt.datetime.fromisoformat((m["head"] + ":59" + m["tail"]).replace("Z", "+00:00").replace("z", "+00:00"))
+    except ValueError as exc:
+        raise InvalidInputError(f"cannot read {value!r} as a UTC time ({exc}); give {_FORMATS}") from None
+    if before.tzinfo is not None:
+        before = before.astimezone(_dt.timezone.utc).replace(tzinfo=None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", erfa.ErfaWarning)
+        jd1, jd2 = erfa.dtf2d("UTC", before.year, before.month, before.day, before.hour, before.minute, 60.0 + frac)
+    if any("after end of day" in str(w.message) for w in caught):
+        if _leap_s(np.array([jd1]))[0] > 0:
+            raise InvalidInputError(f"{value!r}: UTC {before.date()} ends in a leap second, but second 60 exists only "
+                                    "as 23:59:60 UTC; give a second in 0..59 or 23:59:60")
+        raise InvalidInputError(
+            f"{value!r}: UTC {before.date()} has no leap second (second 60 exists only as 23:59:60 UTC at the end "
+            "of a day with a leap second, e.g. 2016-12-31; IERS Bulletin C); give a second in 0..59")
+    return float(jd1), float(jd2)
+
+
 def _parse_one(value):
-    """Return numpy datetime64[ns] (UTC) for one edge value."""
+    """Return numpy datetime64[ns] (UTC) for one edge value, or (jd1, jd2) for a leap second."""
     if isinstance(value, np.datetime64):
         if np.isnat(value):
             raise ValueError("got NaT (not-a-time); give a real UTC instant")
@@ -43,6 +80,8 @@ def _parse_one(value):
         return np.datetime64(value, "ns")
     if isinstance(value, str):
         text = value.strip()
+        if _LEAP_SECOND.match(text):
+            return _leap_second(value, text)
         try:
             parsed = _dt.datetime.fromisoformat(text.replace("Z", "+00:00").replace("z", "+00:00"))
         except ValueError as exc:
@@ -51,6 +90,31 @@ def _parse_one(value):
             parsed = parsed.astimezone(_dt.timezone.utc).replace(tzinfo=None)
         return np.datetime64(parsed, "ns")
     raise TypeError(f"cannot use {type(value).__name__} {value!r} as a time; give {_FORMATS}")
+
+
+def _tai_minus_utc_at_0h(jd1):
+    """Return TAI - UTC (s, erfa's table) at 0h UTC of the days starting at ``jd1`` (x.5)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", erfa.ErfaWarning)  # "dubious year" past erfa's leap-second table
+        y, m, d, _ = erfa.jd2cal(np.asarray(jd1, dtype=float), 0.0)
+        return erfa.dat(y, m, d, 0.0)
+
+
+def _leap_s(jd1):
+    """Return the leap second (s; 1 on a day that ends in one, else 0) of the days starting at ``jd1``."""
+    jd1 = np.asarray(jd1, dtype=float)
+    return _tai_minus_utc_at_0h(jd1 + 1.0) - _tai_minus_utc_at_0h(jd1)
+
+
+def _day_length_s(jd1):
+    """Return the length (SI s) of the UTC days starting at ``jd1``: 86 400, or 86 401 with a leap second."""
+    return SECONDS_PER_DAY + _leap_s(jd1)
+
+
+def _leap_between(jd1_a, jd1_b):
+    """Return where the days from ``jd1_a`` to ``jd1_b`` (either order, both included) hold a leap second."""
+    lo, hi = np.minimum(jd1_a, jd1_b), np.maximum(jd1_a, jd1_b)
+    return _tai_minus_utc_at_0h(hi + 1.0) != _tai_minus_utc_at_0h(lo)
 
 
 class Epochs:
@@ -83,12 +147,23 @@ class Epochs:
         if isinstance(value, np.ndarray) and np.issubdtype(value.dtype, np.datetime64):
             return cls.from_datetime64(value)
         if isinstance(value, (str, _dt.datetime, _dt.date, np.datetime64)):
-            return cls.from_datetime64(np.array([_parse_one(value)]))
-        try:
-            items = list(value)
-        except TypeError:
-            raise TypeError(f"cannot use {type(value).__name__} {value!r} as a time; give {_FORMATS}") from None
-        return cls.from_datetime64(np.array([_parse_one(v) for v in items], dtype="datetime64[ns]"))
+            items = [value]
+        else:
+            try:
+                items = list(value)
+            except TypeError:
+                raise TypeError(f"cannot use {type(value).__name__} {value!r} as a time; give {_FORMATS}") from None
+        parsed = [_parse_one(v) for v in items]
+        leap = [i for i, p in enumerate(parsed) if isinstance(p, tuple)]
+        if not leap:
+            return cls.from_datetime64(np.array(parsed, dtype="datetime64[ns]"))
+        plain = [i for i in range(len(parsed)) if i not in leap]
+        jd1, jd2 = np.empty(len(parsed)), np.empty(len(parsed))
+        if plain:
+            e = cls.from_datetime64(np.array([parsed[i] for i in plain], dtype="datetime64[ns]"))
+            jd1[plain], jd2[plain] = e.jd1, e.jd2
+        jd1[leap], jd2[leap] = zip(*(parsed[i] for i in leap))
+        return cls(jd1, jd2)
 
     @classmethod
     def from_datetime64(cls, values):
@@ -98,7 +173,9 @@ class Epochs:
             raise ValueError("got NaT (not-a-time); give real UTC instants")
         i = ns.astype(np.int64)
         days, rem = np.divmod(i, _NS_PER_DAY)
-        return cls(JD_UNIX_EPOCH + days.astype(float), rem.astype(float) / _NS_PER_DAY)
+        jd1 = JD_UNIX_EPOCH + days.astype(float)
+        # numpy counts 86 400 s in every day; on a day with a leap second the share of the day is of 86 401 s.
+        return cls(jd1, rem.astype(float) / (_NS_PER_DAY + _leap_s(jd1) * 1e9))
 
     @classmethod
     def range(cls, start, duration_s, step_s):
@@ -122,8 +199,27 @@ class Epochs:
         return Epochs(np.atleast_1d(self.jd1[index]), np.atleast_1d(self.jd2[index]))
 
     def __add__(self, seconds):
-        """Return these epochs shifted by ``seconds`` (scalar or (N,) array)."""
-        return Epochs(self.jd1, self.jd2 + np.asarray(seconds, dtype=float) / SECONDS_PER_DAY)
+        """Return these epochs shifted by ``seconds`` (SI seconds, scalar or (N,) array), across leap seconds."""
+        seconds = np.asarray(seconds, dtype=float)
+        plain = Epochs(self.jd1, self.jd2 + seconds / SECONDS_PER_DAY)
+        jd1, s = np.broadcast_arrays(self.jd1, self.jd2 * _day_length_s(self.jd1) + seconds)
+        touched = _leap_between(jd1, plain.jd1)
+        if not touched.any():
+            return plain                  # no leap second on the way: the exact 86 400-s arithmetic
+        # Walk day by day from the start day: s is the SI seconds since its 0h.
+        day, s = jd1[touched].copy(), s[touched].copy()
+        for _ in range(int(np.max(np.abs(s))) // 86399 + 3):
+            length = _day_length_s(day)
+            fwd, back = s >= length, s < 0
+            if not (fwd.any() or back.any()):
+                break
+            s = np.where(fwd, s - length, s)
+            day = np.where(fwd, day + 1.0, day)
+            s = np.where(back, s + _day_length_s(day - 1.0), s)
+            day = np.where(back, day - 1.0, day)
+        jd1_out, jd2_out = plain.jd1.copy(), plain.jd2.copy()
+        jd1_out[touched], jd2_out[touched] = day, s / _day_length_s(day)
+        return Epochs(jd1_out, jd2_out)
 
     def __eq__(self, other):
         return (isinstance(other, Epochs) and len(self) == len(other)
@@ -139,35 +235,42 @@ class Epochs:
         """Return the one-part UTC Julian date (loses ~20 us; for display)."""
         return self.jd1 + self.jd2
 
+    def _seconds_of_day(self):
+        return self.jd2 * _day_length_s(self.jd1)
+
     @property
     def datetime64(self):
-        """Return the instants as numpy datetime64[ns] (UTC)."""
+        """Return the instants as numpy datetime64[ns] (UTC; an instant inside a leap second, which numpy
+        cannot show, as the last nanosecond of its day)."""
         days = np.round(self.jd1 - JD_UNIX_EPOCH).astype(np.int64)
-        ns = np.round(self.jd2 * _NS_PER_DAY).astype(np.int64)
+        ns = np.minimum(np.round(self._seconds_of_day() * 1e9), _NS_PER_DAY - 1).astype(np.int64)
         return (days * _NS_PER_DAY + ns).astype("datetime64[ns]")
 
     def iso(self):
-        """Return ISO-8601 strings with a trailing 'Z' (millisecond precision)."""
-        return [str(t)[:23] + "Z" for t in self.datetime64.astype("datetime64[ms]")]
+        """Return ISO-8601 strings with a trailing 'Z' (millisecond precision; a leap second as 23:59:60.xxx)."""
+        out = [str(t)[:23] + "Z" for t in self.datetime64.astype("datetime64[ms]")]
+        sod = self._seconds_of_day()
+        for i in np.flatnonzero(sod >= SECONDS_PER_DAY):
+            ms = min(int(np.floor((sod[i] - SECONDS_PER_DAY) * 1000.0 + 1e-6)), 999)
+            out[i] = f"{out[i][:17]}60.{ms:03d}Z"
+        return out
 
     def seconds_since(self, reference):
-        """Return seconds (float, (N,)) elapsed since ``reference`` (86 400 s per day)."""
+        """Return SI seconds (float, (N,)) elapsed since ``reference`` (leap seconds counted)."""
         ref = Epochs.from_any(reference)
-        return ((self.jd1 - ref.jd1[0]) + (self.jd2 - ref.jd2[0])) * SECONDS_PER_DAY
+        plain = ((self.jd1 - ref.jd1[0]) + (self.jd2 - ref.jd2[0])) * SECONDS_PER_DAY
+        touched = _leap_between(np.broadcast_to(ref.jd1[:1], self.jd1.shape), self.jd1)
+        if not touched.any():
+            return plain
+        # whole days of 86 400 s, the seconds within each day, and the leap seconds TAI - UTC gained in between
+        exact = ((self.jd1 - ref.jd1[0]) * SECONDS_PER_DAY + (self._seconds_of_day() - ref._seconds_of_day()[0])
+                 + (_tai_minus_utc_at_0h(self.jd1) - _tai_minus_utc_at_0h(ref.jd1[:1])))
+        return np.where(touched, exact, plain)
 
     # ---- time scales ------------------------------------------------------
     def _erfa_utc(self):
-        """Return (jd1, jd2) in erfa's UTC convention.
-
-        Epochs count 86 400 s per day (like numpy and sgp4); erfa reads the
-        fraction of a day that ends in a leap second as a share of 86 401 s.
-        """
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", erfa.ErfaWarning)  # "dubious year" past erfa's leap-second table
-            y0, m0, d0, _ = erfa.jd2cal(self.jd1, 0.0)
-            y1, m1, d1, _ = erfa.jd2cal(self.jd1 + 1.0, 0.0)
-            leap = erfa.dat(y1, m1, d1, 0.0) - erfa.dat(y0, m0, d0, 0.0)
-        return self.jd1, self.jd2 * SECONDS_PER_DAY / (SECONDS_PER_DAY + leap)
+        """Return (jd1, jd2) in erfa's UTC convention: the pair itself (see the module's note)."""
+        return self.jd1, self.jd2
 
     def tai(self):
         """Return TAI as a two-part Julian date (leap seconds from erfa's table)."""

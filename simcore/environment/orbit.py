@@ -253,14 +253,15 @@ class Orbit:
         if not (max_age_days > 0):
             raise ValueError(f"max_age_days must be a positive number of days, got {max_age_days!r}")
         sat = self._satrec
-        age = (epochs.jd1 - sat.jdsatepoch) + (epochs.jd2 - sat.jdsatepochF)
+        # SGP4 runs on the time elapsed since the TLE epoch: SI seconds, leap seconds included (Epochs).
+        age = epochs.seconds_since(self.epoch) / 86400.0
         worst = int(np.argmax(np.abs(age)))
         if abs(age[worst]) > MAX_SPAN_DAYS:
             raise InvalidInputError(
                 f"requested time {epochs[worst].iso()[0]} is {age[worst]:+.0f} days from the epoch of the TLE of "
                 f"{self.name} ({self.epoch.iso()[0]}); SGP4 is meaningless that far ({MAX_SPAN_DAYS:.0f} days "
                 "at most, and it drifts 1-3 km per day): use a TLE from near the requested time")
-        err, r_km, v_km_s = sat.sgp4_array(np.ascontiguousarray(epochs.jd1), np.ascontiguousarray(epochs.jd2))
+        err, r_km, v_km_s = sat.sgp4_array(np.full(age.shape, sat.jdsatepoch), sat.jdsatepochF + age)
         err = np.asarray(err, dtype=np.int64)
         bad = err != 0
         r = np.asarray(r_km, dtype=float) * 1e3

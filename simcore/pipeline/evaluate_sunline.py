@@ -39,7 +39,7 @@ from simcore.errors import InvalidInputError
 from simcore.constants import E_SUN_W_M2
 from simcore.sensor.chain import DIODES, SensorChain
 from simcore.sensor.errors import (apply_errors, basilisk_response, check_faults, misalignment_rotations,
-                                   SensorErrors)
+                                   perturbed_normal_rotations, SensorErrors)
 
 # Allowance (1 sigma, normalised units) for the Earth light on a Sun-seeing diode, which the
 # sun-line measurement model leaves out: 0.05 E_S0 = 9.4 W/m^2 effective for the BPW34FS, about
@@ -93,8 +93,9 @@ def true_signals(ds, errors):
     """Return the true normalised signals (N, K) (irradiance / E_sun) of a run, with the misalignment and
     Basilisk's response (``errors.kelly``) applied to the direct part, and the true normals (K, 3).
 
-    Misalignment: a diode's true frame is its nominal frame turned by a small random rotation
-    (:func:`simcore.sensor.errors.misalignment_rotations`, seeded by ``errors.seed``). Its direct
+    Misalignment: a diode's true frame is its nominal frame turned by the user's perturbation
+    (``errors.align``, :func:`simcore.sensor.errors.perturbed_normal_rotations`) and then by a small random
+    rotation (:func:`simcore.sensor.errors.misalignment_rotations`, seeded by ``errors.seed``). Its direct
     irradiance becomes the traced one plus E_sun s_scale illumination (r_true - r_nominal), with r
     the aperture's exact response (:meth:`simcore.shapes.aperture.WellAperture.response`) to the Sun
     centre; the traced albedo is kept (a misalignment of a degree changes the Earth's place in a
@@ -108,10 +109,11 @@ def true_signals(ds, errors):
     sun = ds["sun_dir_body"].values
     normals = ds["normal_body"].values
     e_sun = float(ds.attrs.get("e_sun_w_m2", E_SUN_W_M2))
-    if errors.misalign_deg > 0:
+    if errors.misalign_deg > 0 or errors.align:
         cfg = _config_of(ds)
         rot = misalignment_rotations(len(normals), np.radians(errors.misalign_deg),
                                      np.random.default_rng([errors.seed, 1]))
+        rot = rot @ perturbed_normal_rotations(normals, errors.align)   # the user's turn first, the random one on top
         frames = cfg.frames
         frames_true = np.einsum("kij,klj->kli", rot, frames)     # rows rotated: (R u, R v, R n)
         scale = e_sun * ds["sun_scale"].values * ds["illumination"].values
@@ -153,15 +155,31 @@ def _stats(err, sunlit):
             "p95": round(float(np.percentile(v, 95.0)), 4), "max": round(float(v.max()), 4)}
 
 
+def parse_process_noise(text):
+    """Return (q_rate, q_sun) of the CLI's ``--process-noise Q_RATE[:Q_SUN]`` (rad^2/s^3, 1/s), each >= 0."""
+    parts = str(text).split(":")
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        vals = []
+    if len(vals) not in (1, 2) or not all(np.isfinite(v) and v >= 0 for v in vals):
+        raise InvalidInputError(f"--process-noise {text!r}: give Q_RATE[:Q_SUN], numbers >= 0 (the rate random walk's "
+                                "density in rad^2/s^3 and the Sun vector's in 1/s; default 1e-13:0)")
+    return vals[0], (vals[1] if len(vals) == 2 else 0.0)
+
+
 def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False, seed=0, sigma_meas=None,
-               gate_sigma=5.0, gyro_sigma_deg_s=None, q_rate=1e-13, q_sun=0.0, return_series=False):
+               gate_sigma=5.0, gyro_sigma_deg_s=None, q_rate=1e-13, q_sun=0.0, use_threshold=None,
+               return_series=False):
     """Return the JSON summary (dict) of a sun-line filter on a run Dataset, WLS and Sun-Albedo-Sun beside it.
 
     ``kind`` 'sunline-ekf' or 'sunline-ukf' (or 'ekf' / 'ukf'); ``errors`` a
     :class:`~simcore.sensor.errors.SensorErrors`; ``faults`` a sequence of
     :class:`~simcore.sensor.errors.Fault`; ``gyro_sigma_deg_s``: feed a gyro reading the true rate
     plus white noise of that standard deviation (deg/s); ``sigma_meas`` the filters' diode noise
-    (normalised; default in the module docstring). Start and eclipse: the module docstring. ``return_series=True`` also returns a dict of the
+    (normalised; default in the module docstring); ``use_threshold``: readings used from this value up
+    (normalised, Basilisk's ``sensorUseThresh``; default :data:`USE_THRESHOLD_SIGMAS` times the noise);
+    ``q_rate``, ``q_sun``: the process noise (:func:`estimators.sunline.process_noise`). Start and eclipse: the module docstring. ``return_series=True`` also returns a dict of the
     time series (estimates, rejections, true values).
     """
     filt = FILTER_KINDS.get(kind, kind)
@@ -174,6 +192,11 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
     check_faults(faults, t, len(normals))
     if gyro_sigma_deg_s is not None and not gyro_sigma_deg_s > 0:
         raise InvalidInputError(f"the gyro noise must be > 0 deg/s, got {gyro_sigma_deg_s}")
+    if use_threshold is not None and not (np.isfinite(use_threshold) and 0 <= use_threshold < 1):
+        raise InvalidInputError(f"the use threshold must be a reading in [0, 1) of the normal-Sun reading, got "
+                                f"{use_threshold}")
+    if not all(np.isfinite(q) and q >= 0 for q in (q_rate, q_sun)):
+        raise InvalidInputError(f"the process noise must be >= 0, got q_rate {q_rate}, q_sun {q_sun}")
     e_p, chain = sensed_readings(ds, diode=diode, errors=errors, faults=faults, noise=noise, seed=seed)
     e_s0 = DIODES[diode].e_s0_w_m2 if isinstance(diode, str) else diode.e_s0_w_m2
     fov = float(np.min(ds["fov_deg"].values))
@@ -202,7 +225,8 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
     res = run_sunline_filter(filt, e_p[i0:] / e_s0, normals, t[i0:], fov_deg=fov,
                              x0=np.concatenate([wls[i0], np.zeros(3)]), P0=p0, sigma_meas=sigma_meas,
                              gyro_rad_s=None if gyro is None else gyro[i0:], gate_sigma=gate_sigma,
-                             update_mask=sunlit[i0:], use_threshold=USE_THRESHOLD_SIGMAS * sigma_noise,
+                             update_mask=sunlit[i0:],
+                             use_threshold=USE_THRESHOLD_SIGMAS * sigma_noise if use_threshold is None else use_threshold,
                              gyro_sigma_rad_s=None if gyro_sigma_deg_s is None else np.radians(gyro_sigma_deg_s),
                              q_rate=q_rate, q_sun=q_sun, live=live)
     n, k = e_p.shape
@@ -220,6 +244,8 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
         "run": ds.attrs.get("configuration"), "filter": name, "diode": diode if isinstance(diode, str) else diode.name,
         "epochs": int(n), "sunlit_epochs": int(sunlit.sum()), "filter_start_s": float(t[i0]),
         "sigma_meas": round(sigma_meas, 5), "gate_sigma": gate_sigma,
+        "use_threshold": round(float(USE_THRESHOLD_SIGMAS * sigma_noise if use_threshold is None else use_threshold), 6),
+        "q_rate": q_rate, "q_sun": q_sun,
         "gyro_sigma_deg_s": gyro_sigma_deg_s,
         "sensor_errors": {f: getattr(errors, f) for f in errors.__dataclass_fields__},
         "faults": [{"diode": f.diode, "kind": f.kind, "onset_s": f.onset_s, "end_s": f.end_s} for f in faults],
@@ -243,3 +269,23 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
                   "wls": wls, "sun_albedo_sun": sas, "sun_true": sun_true, "rate_true": w_true, "sunlit": sunlit}
         return out, series
     return out
+
+
+def summary_lines(run, out):
+    """Return the text report (lines) of :func:`filter_run`'s summary ``out`` for run file ``run``."""
+    lines = []
+    lines.append(f"{run}: {out.get('run')}, {out['filter']} (use threshold {out['use_threshold']:g}, process noise "
+                 f"{out['q_rate']:g}:{out['q_sun']:g}), sunlit errors (mean / p95 / max)")
+    rows = [(out["filter"], out["sun_error_deg"], out.get("rate_error_deg_s"))]
+    rows += [(name, c["sun_error_deg"], c.get("rate_error_deg_s")) for name, c in out.get("compare", {}).items()]
+    for name, sun, rate in rows:
+        s = sun["sunlit"]
+        line = f"  {name:<16} Sun {s['mean']} / {s['p95']} / {s['max']} deg"
+        if rate:
+            r = rate["sunlit"]
+            line += f";  rate (perpendicular to the Sun) {r['mean']} / {r['p95']} / {r['max']} deg/s"
+        lines.append(line)
+    for f, dt in zip(out.get("faults", []), out.get("first_rejection_after_onset_s", [])):
+        lines.append(f"  fault {f['kind']} on diode {f['diode']} at {f['onset_s']:g} s: "
+                     + ("never rejected" if dt is None else f"first rejected {dt:g} s after its onset"))
+    return lines

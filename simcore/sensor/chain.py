@@ -277,6 +277,25 @@ class SensorChain:
             i[:, list(self.dead)] = 0.0
         return i
 
+    def noise_std_w_m2(self, e_w_m2):
+        """Return the standard deviation (N, K) of a reading E_p, effective W/m^2, for irradiance (N, K) W/m^2.
+
+        The chain's own noise in the units of eq. 4.25: the shot and Johnson current noise of
+        :meth:`current_a` (eqs. 2.26-2.28) and the ADC's rounding (uniform over one count: LSB / sqrt(12)),
+        divided by the gain from current to E_p. Without ``noise`` only the rounding is left.
+        """
+        e = self._check_e(e_w_m2)
+        d = self.diode
+        t = np.broadcast_to(self.temperature_k, e.shape)
+        i = d.k_r_a_per_w_m2 * d.e_s0_w_m2 * (e / E_SUN_W_M2) * (1.0 + d.temp_coeff_per_k * (t - T_REF_K))
+        i = i + d.dark_current_a
+        var_i = 0.0
+        if self.noise:
+            var_i = (2.0 * Q_E_C * np.clip(i, 0.0, None) * self.bandwidth_hz
+                     + 4.0 * K_B_J_K * t * self.bandwidth_hz / d.shunt_resistance_ohm)
+        var_counts = var_i * self.counts_per_a ** 2 + 1.0 / 12.0
+        return np.sqrt(var_counts) * self.lsb_w_m2
+
     def counts_from_current(self, current_a):
         """Return ADC counts (N, K), whole numbers as float64, for currents (N, K) A (eq. 4.24).
 

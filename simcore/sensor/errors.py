@@ -27,14 +27,20 @@ package or a cover does. With ``kelly`` set (:func:`basilisk_response`), sunsim'
 irradiance, which sees the real well around each diode, is replaced by this model, so the two
 optics can be compared on the same orbit; the traced albedo is kept.
 
-Differences from Basilisk, on purpose:
+Basilisk's noise process (``GaussMarkov::computeNextState``, rewritten in November 2024,
+Basilisk 2.5 on): x <- A x + senNoiseStd w, w ~ N(0, 1), then clamped to +-walkBounds where
+walkBounds > 0. ``senNoiseStd`` is used as given (the old 1.5x multiplier was removed in
+December 2024, Basilisk commit 93e7b05; 2.12.1 measures 1.00x). The CSS's propagation A
+(``setAMatrix``) is 1 by default, which makes it a bounded random walk: ``walk=STEP:BOUND`` here.
+A = 0 (``setAMatrix([[0]])``) makes it white noise clipped at +-walkBounds: ``clip=SIGMA:BOUND``
+here (:func:`basilisk_noise` covers both). The first-order Gauss-Markov process with a
+correlation time (``gm=SIGMA:TAU``, :func:`gauss_markov`) is sunsim's own (Basilisk's A = phi
+with its noise scaled by sqrt(1 - phi^2) gives the same process).
 
-- noise standard deviations are what you give: Basilisk multiplies ``senNoiseStd`` by 1.5
-  inside its Gauss-Markov model; here white noise, Gauss-Markov and the walk each have their
-  own documented amplitude;
-- the Gauss-Markov process is the first-order one with a correlation time (below), not
-  Basilisk's ``propMatrix`` = 1 walk; the bounded walk is Basilisk's (clamped at +-bound:
-  the walk never leaves its bounds, the behaviour Basilisk issue #1460 restored).
+Misalignment: ``misalign=DEG`` turns every diode by a random small rotation (Rayleigh scale DEG);
+``align=I:DTHETA:DPHI`` turns diode I as Basilisk's ``setUnitDirectionVectorWithPerturbation``
+(azimuth theta about +z from +x, elevation phi from the x-y plane, both in deg, added to the
+diode's nominal angles in the body frame), once per diode, several items allowed.
 
 Fault kinds (Basilisk ``CSSFaultState``), each for one diode from ``onset_s`` until ``end_s``:
 
@@ -46,7 +52,7 @@ Fault kinds (Basilisk ``CSSFaultState``), each for one diode from ``onset_s`` un
 - ``RAND``: it reads the fault-noise process every sample.
 
 The fault-noise process is Basilisk's: a random walk clamped to +-2 with step standard
-deviation 0.75 (its ``faultNoiseStd`` 0.5 x its internal 1.5), started at 0 with the run.
+deviation ``faultNoiseStd`` (default 0.5, settable: ``fault=STEP``), started at 0 with the run.
 """
 import re
 from dataclasses import dataclass, fields
@@ -56,7 +62,7 @@ import numpy as np
 from simcore.errors import InvalidInputError
 
 FAULT_KINDS = ("OFF", "STUCK_CURRENT", "STUCK_MAX", "STUCK_RAND", "RAND")
-FAULT_NOISE_STEP_SIGMA = 0.75   # Basilisk faultNoiseStd 0.5 x 1.5 (coarseSunSensor.cpp, Reset)
+FAULT_NOISE_STEP_SIGMA = 0.5    # Basilisk faultNoiseStd default (coarseSunSensor.cpp constructor; no 1.5x since 12/2024)
 FAULT_NOISE_BOUND = 2.0         # Basilisk boundsFault (coarseSunSensor.cpp, Reset)
 
 
@@ -108,11 +114,30 @@ def gauss_markov(n, k, sigma, tau_s, dt_s, rng):
     return x
 
 
-def bounded_random_walk(n, k, step_sigma, bound, rng, x0=0.0):
+def basilisk_noise(n, k, sigma, bound, prop, rng):
+    """Return Basilisk's GaussMarkov noise (n, k): x_i = clip(prop x_{i-1} + w_i, -bound, bound), x_{-1} = 0.
+
+    ``GaussMarkov::computeNextState``: noise first, w_i ~ N(0, sigma^2), then the propagated state,
+    then the clamp to +-``bound`` (``walkBounds``). ``prop`` = 1: :func:`bounded_random_walk`;
+    ``prop`` = 0: white noise clipped at +-bound (a sample beyond it reads the bound).
+    """
+    if not (np.isfinite(prop) and -1.0 <= prop <= 1.0):
+        raise InvalidInputError(f"the noise propagation (Basilisk's AMatrix) must lie in [-1, 1], got {prop}")
+    if prop == 0.0:
+        if not (np.isfinite(sigma) and sigma >= 0):
+            raise InvalidInputError(f"the clipped noise's standard deviation must be >= 0, got {sigma}")
+        if not (np.isfinite(bound) and bound > 0):
+            raise InvalidInputError(f"the clipped noise's bound must be > 0, got {bound}")
+        return np.clip(rng.standard_normal((n, k)) * sigma, -bound, bound)
+    return bounded_random_walk(n, k, sigma, bound, rng, prop=prop)
+
+
+def bounded_random_walk(n, k, step_sigma, bound, rng, x0=0.0, prop=1.0):
     """Return a random walk (n, k) clamped to [-bound, bound], in the unit of ``step_sigma``.
 
-    x_{i+1} = clip(x_i + w_i, -bound, bound), w_i ~ N(0, step_sigma^2), x_0 = ``x0``: Basilisk's
-    GaussMarkov with propMatrix = 1 and stateBounds = bound. Every sample lies within the bounds.
+    x_{i+1} = clip(prop x_i + w_i, -bound, bound), w_i ~ N(0, step_sigma^2), x_0 = ``x0``: Basilisk's
+    GaussMarkov with propMatrix = ``prop`` (1: the walk) and stateBounds = bound. Every sample lies
+    within the bounds.
     """
     if not (np.isfinite(step_sigma) and step_sigma >= 0):
         raise InvalidInputError(f"the random-walk step standard deviation must be >= 0, got {step_sigma}")
@@ -126,7 +151,7 @@ def bounded_random_walk(n, k, step_sigma, bound, rng, x0=0.0):
         # a scalar loop per diode: the clamp makes each step depend on the last (~0.2 us a step)
         v, col = start, []
         for step in w[:, j].tolist():
-            v += step
+            v = prop * v + step
             if v > b:
                 v = b
             elif v < -b:
@@ -155,6 +180,10 @@ class SensorErrors:
     kelly: float = None            # None: traced optics; a number: Basilisk's response, Kelly factor kappa
     kelly_power: float = 2.0       # Kelly power p (Basilisk kPower)
     misalign_deg: float = 0.0      # per-diode misalignment, Rayleigh scale of the angle (deg)
+    clip_sigma: float = 0.0        # white noise clipped at +-clip_bound (Basilisk's walkBounds with AMatrix 0)
+    clip_bound: float = 0.0
+    fault_step: float = FAULT_NOISE_STEP_SIGMA   # the fault-noise walk's step (Basilisk faultNoiseStd)
+    align: tuple = ()              # ((diode, dtheta_deg, dphi_deg), ...): Basilisk's per-diode perturbation
     seed: int = 0
 
     def __post_init__(self):
@@ -166,9 +195,18 @@ class SensorErrors:
                 continue
             if f.name == "kelly" and v is None:
                 continue
+            if f.name == "align":
+                for item in v:
+                    if len(item) != 3 or int(item[0]) != item[0] or item[0] < 0 or not np.all(np.isfinite(item)):
+                        raise InvalidInputError(f"sensor errors: align needs (diode index >= 0, dtheta deg, dphi deg), "
+                                                f"got {item}")
+                diodes = [int(item[0]) for item in v]
+                if len(set(diodes)) != len(diodes):
+                    raise InvalidInputError(f"sensor errors: align names a diode twice ({diodes}); give each once")
+                continue
             if not np.isfinite(v):
                 raise InvalidInputError(f"sensor errors: {f.name} must be a finite number, got {v}")
-        for name in ("white", "gm_sigma", "walk_sigma", "misalign_deg", "kelly"):
+        for name in ("white", "gm_sigma", "walk_sigma", "misalign_deg", "kelly", "clip_sigma", "fault_step"):
             if getattr(self, name) is not None and getattr(self, name) < 0:
                 raise InvalidInputError(f"sensor errors: {name} must be >= 0 (a standard deviation or size), "
                                  f"got {getattr(self, name)}")
@@ -177,6 +215,8 @@ class SensorErrors:
                              "give walk=STEP_SIGMA:BOUND with BOUND >= 0")
         if self.walk_sigma > 0 and self.walk_bound == 0:
             raise InvalidInputError("sensor errors: a random walk needs a bound > 0 (walk=STEP_SIGMA:BOUND)")
+        if self.clip_sigma > 0 and not self.clip_bound > 0:
+            raise InvalidInputError("sensor errors: clipped noise needs a bound > 0 (clip=SIGMA:BOUND)")
         if self.gm_tau_s <= 0:
             raise InvalidInputError(f"sensor errors: the Gauss-Markov correlation time must be > 0 s, got {self.gm_tau_s}")
         if self.scale <= -1:
@@ -190,10 +230,11 @@ class SensorErrors:
     def noise_sigma(self):
         """Return the standard deviation of the summed noise processes at one sample (normalised units).
 
-        sqrt(white^2 + gm_sigma^2): the walk is bounded but not stationary, so it is left out
-        (a filter should carry it as a bias or inflate its R by the user's judgement).
+        sqrt(white^2 + gm_sigma^2 + clip_sigma^2) (the clipped noise's standard deviation is at most
+        its sigma): the walk is bounded but not stationary, so it is left out (a filter should carry it
+        as a bias or inflate its R by the user's judgement).
         """
-        return float(np.hypot(self.white, self.gm_sigma))
+        return float(np.sqrt(self.white ** 2 + self.gm_sigma ** 2 + self.clip_sigma ** 2))
 
 
 @dataclass(frozen=True)
@@ -243,6 +284,34 @@ def misalignment_rotations(k, sigma_rad, rng):
     return np.eye(3) + s * kx + (1.0 - c) * kx @ kx
 
 
+def perturbed_normal_rotations(normals, align):
+    """Return rotations (K, 3, 3) that turn each diode as Basilisk's ``setUnitDirectionVectorWithPerturbation``.
+
+    ``align``: ((diode, dtheta_deg, dphi_deg), ...). Diode k's nominal normal n has azimuth
+    theta = atan2(n_y, n_x) and elevation phi = asin(n_z) in the body frame; its perturbed normal is
+    (cos(phi + dphi) cos(theta + dtheta), cos(phi + dphi) sin(theta + dtheta), sin(phi + dphi)), and
+    the rotation is the smallest one taking n there (about n x n'), which turns the diode's whole
+    frame and aperture with it. Diodes not named get the identity.
+    """
+    h = np.asarray(normals, dtype=float)
+    rot = np.repeat(np.eye(3)[None], h.shape[0], axis=0)
+    for diode, dtheta, dphi in align:
+        k = int(diode)
+        if not 0 <= k < h.shape[0]:
+            raise InvalidInputError(f"align: diode {k} does not exist; this run has diodes 0..{h.shape[0] - 1}")
+        n = h[k] / np.linalg.norm(h[k])
+        theta = np.arctan2(n[1], n[0]) + np.radians(dtheta)
+        phi = np.arcsin(np.clip(n[2], -1.0, 1.0)) + np.radians(dphi)
+        m = np.array([np.cos(phi) * np.cos(theta), np.cos(phi) * np.sin(theta), np.sin(phi)])
+        axis = np.cross(n, m)
+        s, c = np.linalg.norm(axis), float(n @ m)
+        if s < 1e-15:
+            continue
+        kx = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]) / s
+        rot[k] = np.eye(3) + s * kx + (1.0 - c) * kx @ kx
+    return rot
+
+
 def check_faults(faults, t_s, n_diodes):
     """Raise ValueError unless every fault names a diode 0..K-1 and starts inside the run's time span."""
     t = np.asarray(t_s, dtype=float)
@@ -284,8 +353,10 @@ def apply_errors(u_true, t_s, errors=None, faults=(), rng=None):
         sensed += gauss_markov(n, k, errors.gm_sigma, errors.gm_tau_s, dt, rng)
     if errors.walk_sigma > 0:
         sensed += bounded_random_walk(n, k, errors.walk_sigma, errors.walk_bound, rng)
+    if errors.clip_sigma > 0:
+        sensed += basilisk_noise(n, k, errors.clip_sigma, errors.clip_bound, 0.0, rng)
     if faults:
-        fault_noise = bounded_random_walk(n, k, FAULT_NOISE_STEP_SIGMA, FAULT_NOISE_BOUND, rng)
+        fault_noise = bounded_random_walk(n, k, errors.fault_step, FAULT_NOISE_BOUND, rng)
         for f in faults:
             on = f.active(t)
             if not on.any():
@@ -311,11 +382,15 @@ def apply_errors(u_true, t_s, errors=None, faults=(), rng=None):
 _ERROR_KEYS = {
     "bias": ("bias",), "scale": ("scale",), "white": ("white",), "gm": ("gm_sigma", "gm_tau_s"),
     "walk": ("walk_sigma", "walk_bound"), "sat": ("sat_min", "sat_max"), "kelly": ("kelly", "kelly_power"),
-    "misalign": ("misalign_deg",), "seed": ("seed",),
+    "misalign": ("misalign_deg",), "clip": ("clip_sigma", "clip_bound"), "fault": ("fault_step",),
+    "align": ("diode", "dtheta", "dphi"), "seed": ("seed",),
 }
 SENSOR_ERRORS_HELP = ("comma-separated KEY=VALUE in units of the normal-Sun reading: bias=B, scale=S, white=SIGMA, "
-                      "gm=SIGMA:TAU_S, walk=STEP_SIGMA:BOUND, sat=MIN:MAX, kelly=KAPPA[:POWER] (Basilisk's response in place of "
-                      "the traced optics; 0 = cut-off cosine), misalign=DEG, seed=N; "
+                      "gm=SIGMA:TAU_S, walk=STEP_SIGMA:BOUND, clip=SIGMA:BOUND (white noise clipped at +-BOUND: "
+                      "Basilisk's walkBounds with AMatrix 0), sat=MIN:MAX, kelly=KAPPA[:POWER] (Basilisk's response "
+                      "in place of the traced optics; 0 = cut-off cosine), misalign=DEG (random), "
+                      "align=DIODE:DTHETA_DEG:DPHI_DEG (one diode turned as Basilisk's azimuth/elevation perturbation; "
+                      "repeatable), fault=STEP (the RAND faults' walk step, Basilisk faultNoiseStd, default 0.5), seed=N; "
                       "e.g. white=0.01,gm=0.02:300,walk=0.002:0.05")
 FAULTS_HELP = ("semicolon-separated KIND@DIODE:ONSET_S[-END_S], KIND one of " + ", ".join(FAULT_KINDS)
                + "; e.g. STUCK_MAX@3:2000 or OFF@5:100-400")
@@ -346,8 +421,12 @@ def parse_sensor_errors(spec):
         optional_second = key == "kelly"
         if len(parts) != len(names) and not (optional_second and len(parts) == 1):
             form = {"gm": "gm=SIGMA:TAU_S", "walk": "walk=STEP_SIGMA:BOUND", "sat": "sat=MIN:MAX",
-                    "kelly": "kelly=KAPPA[:POWER]"}.get(key, f"{key}=VALUE")
+                    "kelly": "kelly=KAPPA[:POWER]", "clip": "clip=SIGMA:BOUND",
+                    "align": "align=DIODE:DTHETA_DEG:DPHI_DEG"}.get(key, f"{key}=VALUE")
             raise InvalidInputError(f"--sensor-errors: {item!r} must be written {form}")
+        if key == "align":
+            kw["align"] = kw.get("align", ()) + (tuple(_number(x, "--sensor-errors align") for x in parts),)
+            continue
         for name, part in zip(names, parts):
             kw[name] = _number(part, f"--sensor-errors {key}")
     if "seed" in kw:
