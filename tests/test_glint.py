@@ -242,6 +242,27 @@ def test_the_check_refines_until_the_glint_spot_spans_its_cells(wind, altitude_k
     assert gl.check_refine(wind, altitude_km * 1e3, cell_deg, base) == want
 
 
+CALM = ["--config", "tilt0_fov90", "--map", "uniform:0", "--start", "2016-07-02T15:27:00Z"]   # issue 33's calm sea
+#       (the North Atlantic): at --glint 0 its check on 2 x 2 sub-cells failed albedo spread (p = 1.6e-262)
+
+
+def test_a_calm_sea_run_checks_on_cells_that_resolve_its_spot():
+    from simcore.pipeline.run import PreparedRun, RunOptions
+    opts = RunOptions(config="tilt0_fov90", reflectivity="uniform:0", start="2016-07-02T15:27:00Z", duration_s=2.0)
+    assert PreparedRun(dataclasses.replace(opts, glint=0.0)).check_refine == 8     # was 2, as without glint
+    assert PreparedRun(dataclasses.replace(opts, glint=7.0)).check_refine == 2
+    assert PreparedRun(opts).check_refine == 2
+
+
+@pytest.mark.slow
+def test_the_calm_sea_run_passes_its_check(tmp_path):
+    # issue 33's acceptance: the 600-s run at 0 m/s passes `sunsim validate` (~1 min here)
+    r = _sunsim(["run", *CALM, "--glint", "0", "--duration", "600", "-o", "calm.nc"], tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    v = _sunsim(["validate", "calm.nc", "--json"], tmp_path)
+    assert v.returncode == 0 and json.loads(v.stdout)["verdict"] == "PASS", v.stdout + v.stderr
+
+
 def test_a_calm_sea_from_too_low_an_orbit_is_refused_with_the_wind_that_can_be_checked():
     # from 300 km at 0 m/s the spot is 2 sqrt(0.003) 300 km = 33 km: 16 x 16 sub-cells would be needed; at 8 x 8 a
     # spot of 3 x 17.4 km = 52.1 km needs sigma = 0.0869, sigma^2 = 0.00755: (0.00755 - 0.003) / 0.00512 = 0.89 m/s
