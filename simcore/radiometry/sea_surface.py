@@ -126,15 +126,22 @@ def specular_albedo(lat_deg, wind_m_s=REFERENCE_WIND_M_S, tau=GLINT_OPTICAL_DEPT
     return _specular_by_latitude(tuple(np.round(np.atleast_1d(lat_deg), 9)), float(wind_m_s), float(tau))
 
 
-def water_band_ratio(k_water, clear_map, glint_wind_m_s=None):
-    """Return the water class's band ratio in each cell of ``clear_map`` (the CERES clear-sky
-    :class:`ReflectivityMap`, south-first), from 6S's ratio ``k_water`` of the path and water-leaving light: without
-    glint (``glint_wind_m_s`` None) k_water + (1 - k_water) A_s / C, the grey specular share kept at the reference
-    wind; with glint at W, k_water (1 - A_s(W) / C), the specular share left to the glint (A_s / C at most 1)."""
+def specular_share(clear_map, glint_wind_m_s=None):
+    """Return min(A_s / C, 1) in each cell of ``clear_map`` (the CERES clear-sky :class:`ReflectivityMap`, south-first
+    rows): the grey specular share of its clear-sky albedo C, A_s at the glint's wind ``glint_wind_m_s`` (m/s) or,
+    without glint (None), at :data:`REFERENCE_WIND_M_S`."""
     wind = REFERENCE_WIND_M_S if glint_wind_m_s is None else float(glint_wind_m_s)
     a_s = specular_albedo(clear_map.lat_deg, wind)[:, None]
     c = clear_map.values
-    share = np.where(c > 0, np.minimum(a_s / np.where(c > 0, c, 1.0), 1.0), 1.0)
+    return np.where(c > 0, np.minimum(a_s / np.where(c > 0, c, 1.0), 1.0), 1.0)
+
+
+def water_band_ratio(k_water, clear_map, glint_wind_m_s=None):
+    """Return the water class's band ratio in each cell of ``clear_map`` (the CERES clear-sky
+    :class:`ReflectivityMap`, south-first), from 6S's ratio ``k_water`` of the path and water-leaving light: without
+    glint (``glint_wind_m_s`` None) k_water + (1 - k_water) s, the grey specular share s (:func:`specular_share`)
+    kept; with glint at W, k_water (1 - s), the specular share left to the glint."""
+    share = specular_share(clear_map, glint_wind_m_s)
     if glint_wind_m_s is None:
         return k_water + (1.0 - k_water) * share
     return k_water * (1.0 - share)
