@@ -264,9 +264,9 @@ def test_the_calm_sea_run_passes_its_check(tmp_path):
 
 
 def test_a_calm_sea_from_too_low_an_orbit_is_refused_with_the_wind_that_can_be_checked():
-    # from 300 km at 0 m/s the spot is 2 sqrt(0.003) 300 km = 33 km: 16 x 16 sub-cells would be needed; at 8 x 8 a
-    # spot of 3 x 17.4 km = 52.1 km needs sigma = 0.0869, sigma^2 = 0.00755: (0.00755 - 0.003) / 0.00512 = 0.89 m/s
-    with pytest.raises(InvalidInputError, match=r"~33 km across.*give 0\.9 m/s or more"):
+    # from 300 km at 0 m/s the spot's half-width is 2 sqrt(0.003) 300 km = 33 km: 16 x 16 sub-cells would be
+    # needed; at 8 x 8 a spot of 3 x 17.4 km = 52.1 km needs sigma = 0.0869, sigma^2 = 0.00755: (0.00755 - 0.003) / 0.00512 = 0.89 m/s
+    with pytest.raises(InvalidInputError, match=r"half-width ~33 km.*give 0\.9 m/s or more"):
         gl.check_refine(0.0, 300e3, 1.25, 2)
     assert gl.check_refine(0.9, 300e3, 1.25, 2) == 8
 

@@ -81,7 +81,7 @@ MAX_WIND_M_S = 30.0
 # spot of 1.7 and 2.2 refined cells failed `sunsim validate` (1 and 2 m/s from 17:05Z, 0 m/s refined 4 from
 # 15:27Z), 2.6 passed (3 m/s from 17:05Z), 3.5 and 4.2 passed (1 m/s refined 4, 0 m/s refined 8).
 SPOT_CELLS = 3.0
-MAX_CHECK_REFINE = 8           # 8 x 8 sub-cells: a check ~1.4x the time of 2 x 2 on a 600-s run
+MAX_CHECK_REFINE = 8           # 64 sub-cells a cell: the check's sums grow with them (a calm sea's run only)
 
 
 def _wind(wind_m_s, option):
@@ -110,9 +110,10 @@ def check_wind(wind_m_s, option="--glint WIND_M_S"):
 
 def check_refine(wind_m_s, altitude_m, cell_deg, base):
     """Return the analytic check's refinement for a glint at ``wind_m_s`` seen from ``altitude_m`` (the run's lowest)
-    on map cells ``cell_deg`` wide (in longitude, their larger side on the shipped grids): the smallest of base, 2 base, 4 base ... whose sub-cells the
-    spot's half-width 2 sigma h spans SPOT_CELLS times (the constant's comment). A calm sea from a low orbit that
-    would need more than MAX_CHECK_REFINE is a one-line InvalidInputError with the wind that can be checked."""
+    on map cells ``cell_deg`` wide (in longitude, their larger side on the shipped grids): the smallest of base,
+    2 base, 4 base ... whose sub-cells the spot's half-width 2 sigma h spans SPOT_CELLS times (the constant's
+    comment). A calm sea from a low orbit that would need more than MAX_CHECK_REFINE is a one-line
+    InvalidInputError with the wind that can be checked."""
     cell_m = math.radians(cell_deg) * R_EARTH_MEAN_M
     factor = int(base)
     while 2.0 * math.sqrt(float(mean_square_slope(wind_m_s))) * altitude_m * factor < SPOT_CELLS * cell_m:
@@ -121,8 +122,8 @@ def check_refine(wind_m_s, altitude_m, cell_deg, base):
         sigma = SPOT_CELLS * cell_m / (2.0 * altitude_m * MAX_CHECK_REFINE)
         w_min = max(sigma * sigma - MSS_OFFSET, 0.0) / MSS_PER_WIND_S_M
         raise InvalidInputError(
-            f"--glint WIND_M_S {wind_m_s:g} m/s from {altitude_m / 1e3:.0f} km: the glint spot "
-            f"(~{2 * math.sqrt(float(mean_square_slope(wind_m_s))) * altitude_m / 1e3:.0f} km across) is too small "
+            f"--glint WIND_M_S {wind_m_s:g} m/s from {altitude_m / 1e3:.0f} km: the glint spot (half-width "
+            f"~{2 * math.sqrt(float(mean_square_slope(wind_m_s))) * altitude_m / 1e3:.0f} km) is too small "
             f"for the analytic check's reference cells even refined {MAX_CHECK_REFINE} x {MAX_CHECK_REFINE}; give "
             f"{math.ceil(w_min * 10) / 10:g} m/s or more at this altitude")
     return factor
