@@ -20,10 +20,10 @@ to the incoming flux, each averaged over time)::
 
 with f the glint's own Cox-Munk BRDF (:mod:`simcore.radiometry.glint`: unpolarised Fresnel of water, Smith's
 shadowing, two-way direct transmittance of the air) at :data:`REFERENCE_WIND_M_S`. a(mu_s) is, on a calm sea,
-the Fresnel reflectance of the flat sea (the daily mean albedos of Payne 1972, J. Atmos. Sci. 29, 959, table 2,
-and the direct-beam surface albedo of Jin et al. 2004, Geophys. Res. Lett. 31, L22301, follow the same Fresnel
-curve; Cox & Munk 1956's rough-sea albedo, Bull. Scripps Inst. Oceanogr. 6, 401, adds the waves' tilt); at the
-equator A_s is ~0.03 of the ~0.09 CERES clear sea. The reflected *sky* light (~0.066 of the diffuse light,
+the Fresnel reflectance of the flat sea (the measured albedos of Payne 1972, J. Atmos. Sci. 29, 959, and the
+direct-beam surface albedo of Jin et al. 2004, Geophys. Res. Lett. 31, L22301, follow the same Fresnel curve, with
+the waves' tilt at low Sun; ``tests/test_sea_surface.py`` compares with Briegleb et al. 1986's fit to Payne's data);
+at the equator A_s is ~0.024 of the ~0.09 CERES clear sea. The reflected *sky* light (~0.066 of the diffuse light,
 Payne 1972) is left with the rest: it has the blue colour of the path radiance that 6S's ratio describes.
 
 **With glint** (``--glint W``) the glint model renders the specular reflection itself, with its angles: the
@@ -45,8 +45,8 @@ its 74.5-deg value poleward (the Norwegian and Barents Seas, ice-free all year u
 Current, set it: 0.21). An open sea brightens toward the poles (0.09 at the equator, 0.16 at 60 deg: the low
 Sun), so a fixed water reference would call the open Norwegian Sea a quarter ice. CERES weights by the
 insolation, so this is the sunlit, summer-heavy ice share, the one the glint, seen only in sunlight, needs:
-over the GSHHG sea it totals ~6.5e6 km^2 in the north and ~7.8e6 in the south (``sunsim``'s
-``tests/test_sea_surface.py`` prints them), between the year's minimum and maximum extents (NSIDC Sea Ice
+over the GSHHG sea it totals ~6.5e6 km^2 in the north and ~7.8e6 in the south (printed by ``pytest -s
+tests/test_sea_surface.py -k sea_ice_share``), between the year's minimum and maximum extents (NSIDC Sea Ice
 Index v3, Fetterer et al. 2017, doi:10.7265/N5K072F8). Seasonal masks need monthly data the project does not
 ship. The band data's own water/snow_ice split (``build_band_data.py``, ``sea_ice``) used the 6S water
 reflectance (0.054) as rho_open at every latitude, which finds ~1.8 times this ice (rebuilding it needs the
@@ -60,9 +60,9 @@ from simcore.environment.maps import named_map
 from simcore.environment.water import ocean_fraction
 from simcore.radiometry.glint import GLINT_OPTICAL_DEPTH, mean_square_slope, reflected_cos2
 
-# Global mean wind over the ice-free oceans at 10 m, ~7 m/s (Wentz et al. 1984, J. Geophys. Res. 89, 3689: 7.4 m/s
-# from Seasat; Archer & Jacobson 2005, J. Geophys. Res. 110, D12110: 6.6 m/s at 80 m over the sea). The
-# earth-study's glint wind too.
+# The wind of the sea's specular share without glint: the earth-study's glint wind (studies.earth_band), of the order
+# of the global mean wind over the ice-free ocean (~7 m/s at 10 m); A_s at the equator is 0.0258 at 2 m/s, 0.0244
+# at 7, 0.0229 at 14.
 REFERENCE_WIND_M_S = 7.0
 SEA_ICE_LAT_DEG = 45.0            # as build_band_data.SEA_ICE_LAT_DEG: equatorward of it no sea ice
 OPEN_SEA_PERCENTILE = 1.0         # the open sea's albedo: the darkest 1 % of a row's all-sea cells
