@@ -18,7 +18,7 @@ from simcore.environment.clouds import CloudWeather
 from simcore.environment.maps import named_map
 from simcore.environment.water import ocean_fraction
 from simcore.errors import InvalidInputError
-from simcore.radiometry import band
+from simcore.radiometry import band, sea_surface
 from simcore.radiometry.spectral import Spectrum
 
 NM = 1e-9
@@ -94,13 +94,19 @@ def test_infrared_band_darkens_the_sea_and_brightens_vegetation_and_the_visible_
     eye = band.class_band_ratios(band.band_curve("SFH2430")[0])      # proxy: CIE 1924 V(lambda)
     assert ir["water"] < 0.3 < 1.5 < ir["forest"]
     assert eye["forest"] < 0.7 < 1.3 < eye["water"]
-    # a cell's band factor is its classes' ratios weighted by their shares
+    # a cell's band factor is its classes' ratios weighted by their shares, the water's with the sea's grey
+    # specular share A_s / C of the cell's CERES clear-sky albedo C kept at its broadband level (sea_surface)
     classes, f = band.class_fractions()
     k = band.band_factor(band.band_curve("BPW34FS")[0])
+
+    def water(r, c):
+        share = sea_surface.specular_albedo([CLEAR.lat_deg[r]])[0] / CLEAR.values[r, c]
+        return ir["water"] + (1.0 - ir["water"]) * share
     r, c = _cell(0.5, -150.5)
-    assert k[r, c] == pytest.approx(ir["water"], rel=1e-12)
+    assert k[r, c] == pytest.approx(water(r, c), rel=1e-12)
     r, c = _cell(-3.5, -62.5)
-    assert k[r, c] == pytest.approx(sum(f[i, r, c] * ir[n] for i, n in enumerate(classes)), rel=1e-12)
+    assert k[r, c] == pytest.approx(sum(f[i, r, c] * (water(r, c) if n == "water" else ir[n])
+                                        for i, n in enumerate(classes)), rel=1e-12)
 
 
 def test_cloud_weather_on_the_band_pair_has_its_mean_and_the_broadband_clouds():

@@ -225,6 +225,52 @@ def test_bad_wind_is_a_user_error(bad):
         gl.SunGlint(bad)
 
 
+def test_winds_beyond_hurricane_force_are_refused_and_a_calm_sea_is_accepted():
+    with pytest.raises(InvalidInputError, match="above the 30 m/s"):
+        gl.check_wind(30.01)
+    assert gl.check_wind(0.0) == 0.0 and gl.check_wind(gl.MAX_WIND_M_S) == 30.0
+
+
+@pytest.mark.parametrize("wind, altitude_km, cell_deg, base, want", [
+    # spot half-width 2 sigma h against SPOT_CELLS = 3 sub-cells of 1.25 deg (139.0 km on the 6371.01 km sphere):
+    (7.0, 665.0, 1.25, 2, 2),    # sigma^2 = 0.03884: 262 km >= 3 x 69.5 km at 2 x 2
+    (0.0, 665.0, 1.25, 2, 8),    # sigma^2 = 0.003: 72.8 km; 3 x 34.7 km = 104 > 72.8 at 4 x 4, 52.1 at 8 x 8
+    (1.0, 665.0, 1.25, 2, 4),    # 119.8 km: above 104 (4 x 4), below 208 (2 x 2)
+    (1.0, 665.0, 1.25, 4, 4),    # cloud weather's 4 x 4 is the floor
+])
+def test_the_check_refines_until_the_glint_spot_spans_its_cells(wind, altitude_km, cell_deg, base, want):
+    assert gl.check_refine(wind, altitude_km * 1e3, cell_deg, base) == want
+
+
+CALM = ["--config", "tilt0_fov90", "--map", "uniform:0", "--start", "2016-07-02T15:27:00Z"]   # issue 33's calm sea
+#       (the North Atlantic): at --glint 0 its check on 2 x 2 sub-cells failed albedo spread (p = 1.6e-262)
+
+
+def test_a_calm_sea_run_checks_on_cells_that_resolve_its_spot():
+    from simcore.pipeline.run import PreparedRun, RunOptions
+    opts = RunOptions(config="tilt0_fov90", reflectivity="uniform:0", start="2016-07-02T15:27:00Z", duration_s=2.0)
+    assert PreparedRun(dataclasses.replace(opts, glint=0.0)).check_refine == 8     # was 2, as without glint
+    assert PreparedRun(dataclasses.replace(opts, glint=7.0)).check_refine == 2
+    assert PreparedRun(opts).check_refine == 2
+
+
+@pytest.mark.slow
+def test_the_calm_sea_run_passes_its_check(tmp_path):
+    # issue 33's acceptance: the 600-s run at 0 m/s passes `sunsim validate` (~1 min here)
+    r = _sunsim(["run", *CALM, "--glint", "0", "--duration", "600", "-o", "calm.nc"], tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    v = _sunsim(["validate", "calm.nc", "--json"], tmp_path)
+    assert v.returncode == 0 and json.loads(v.stdout)["verdict"] == "PASS", v.stdout + v.stderr
+
+
+def test_a_calm_sea_from_too_low_an_orbit_is_refused_with_the_wind_that_can_be_checked():
+    # from 300 km at 0 m/s the spot's half-width is 2 sqrt(0.003) 300 km = 33 km: 16 x 16 sub-cells would be
+    # needed; at 8 x 8 a spot of 3 x 17.4 km = 52.1 km needs sigma = 0.0869, sigma^2 = 0.00755: (0.00755 - 0.003) / 0.00512 = 0.89 m/s
+    with pytest.raises(InvalidInputError, match=r"half-width ~33 km.*give 0\.9 m/s or more"):
+        gl.check_refine(0.0, 300e3, 1.25, 2)
+    assert gl.check_refine(0.9, 300e3, 1.25, 2) == 8
+
+
 # ---- the analytic albedo model with glint (simcore.radiometry.analytic) -------------------------------------
 R_M = 6371010.0         # simcore.constants.R_EARTH_MEAN_M, the maps' sphere
 E_SUN = 1366.1
@@ -501,10 +547,13 @@ def test_a_glint_run_passes_its_analytic_check_which_sees_the_glint(tmp_path, ma
         assert np.all(study.glint.sea[over] == 0) and np.any(study.glint.sea[~over] == 1)
 
 
-@pytest.mark.parametrize("value", ["-1", "nan", "inf", "-0.5"])
-def test_bad_wind_is_one_line_exit_2_and_writes_nothing(tmp_path, value):
+@pytest.mark.parametrize("value, why", [("-1", "must be a finite wind speed >= 0"), ("nan", "must be a finite"),
+                                        ("inf", "must be a finite"), ("-0.5", "must be a finite"),
+                                        ("31", "above the 30 m/s")])
+def test_bad_wind_is_one_line_exit_2_and_writes_nothing(tmp_path, value, why):
+    # 31 m/s: a sea-wide wind beyond hurricane force (glint.MAX_WIND_M_S)
     r = _sunsim(["run", *SUNLIT, "--duration", "4", "--glint", value], tmp_path)
     assert r.returncode == 2, (r.stdout, r.stderr)
     lines = [x for x in r.stderr.splitlines() if x.strip()]
-    assert len(lines) == 1 and "--glint WIND_M_S must be a finite wind speed >= 0" in lines[0], r.stderr
+    assert len(lines) == 1 and "--glint WIND_M_S" in lines[0] and why in lines[0], r.stderr
     assert "Traceback" not in r.stderr and _listing(tmp_path) == []

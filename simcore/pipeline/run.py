@@ -28,7 +28,7 @@ from scenes.config import SatelliteConfig, body_side_normal
 from scenes.meshes import build_parts, build_satellite_mesh
 from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
-from simcore.radiometry.glint import SunGlint
+from simcore.radiometry.glint import SunGlint, check_refine as glint_check_refine
 from simcore.shapes.aperture import CircularWell
 from simcore.shapes.occlusion import box_hit
 from simcore.shapes.window import WindowedWell
@@ -38,7 +38,7 @@ from simcore import _llvm
 from simcore._version import __version__
 from simcore.environment import attitude as _attitude
 from simcore.pipeline import check as _check
-from simcore.constants import AU_M, E_SUN_W_M2, R_SUN_M, TSI_W_M2
+from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M, TSI_W_M2
 from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.radiometry import band
@@ -157,26 +157,29 @@ class PreparedRun:
         self.epochs = self.geometry.epochs
         self.clouds = None
         if getattr(opts, "clouds", None) is None:
-            self.map = band.resolve_map(map_for_diodes(opts.reflectivity, self.config))
+            self.map = band.resolve_map(map_for_diodes(opts.reflectivity, self.config), getattr(opts, "glint", None))
         else:
-            self.clouds = band.cloud_weather(map_for_diodes(opts.reflectivity, self.config), opts.cloud_scale_km)
+            self.clouds = band.cloud_weather(map_for_diodes(opts.reflectivity, self.config), opts.cloud_scale_km,
+                                             getattr(opts, "glint", None))
             self.map = self.clouds.realise(opts.clouds)
-        self.check_refine = CHECK_REFINE if self.clouds is None else CHECK_REFINE_CLOUDS
-        self.map_refined = self.map.refined(self.check_refine)
         self.glint = self._sea_glint()
+        base, r_m = CHECK_REFINE if self.clouds is None else CHECK_REFINE_CLOUDS, self.geometry.r_sat_gcrs_m
+        self.check_refine = base if self.glint is None else glint_check_refine(        # finer for a calm sea's spot
+            self.glint.wind_m_s, np.linalg.norm(r_m, axis=1).min() - R_EARTH_MEAN_M, self.map.dlon_deg, base)
+        self.map_refined = self.map.refined(self.check_refine)
         self._renderer = None
 
     def _sea_glint(self):
         """Return the run's :class:`SunGlint` on the map's cells (its sea fraction in the map's row order), or None.
 
-        The sea is GSHHG's (:mod:`simcore.environment.water`); under cloud weather the overcast cells' sea is
-        hidden (a thick cloud deck reflects diffusely, and its albedo is the map's there), so glint comes from
-        the clear sea only."""
+        The sea is GSHHG's less its annual ice (:func:`simcore.radiometry.sea_surface.open_sea_fraction`); under cloud
+        weather the overcast cells' sea is hidden (a thick cloud deck reflects diffusely; its albedo is the map's),
+        so glint comes from the clear sea only. A band map's sea leaves its specular part to it (band.resolve_map)."""
         wind = getattr(self.opts, "glint", None)
         if wind is None:
             return None
-        from simcore.environment.water import ocean_fraction
-        sea = ocean_fraction(self.map)
+        from simcore.radiometry.sea_surface import open_sea_fraction
+        sea = open_sea_fraction(self.map, band.sea_ice_share())
         if self.clouds is not None:
             sea = np.where(self.clouds.overcast(self.opts.clouds), 0.0, sea)
         return SunGlint(wind, sea=sea)

@@ -9,7 +9,10 @@ class c with clear-sky top-of-atmosphere reflectance rho_c(lambda) (6S over the 
     k_c = [int S E rho_c / int S E] / [int E rho_c / int E]           (band reflectance / broadband reflectance)
 
 and a cell with class shares f_c (MODIS MCD12C1 2019, per 1-deg CERES cell) the band factor
-K = sum_c f_c k_c. The band maps are
+K = sum_c f_c k_c. The water's k (6S ``ClearWater``: path and water-leaving light, no surface reflection) is
+made per cell by :func:`simcore.radiometry.sea_surface.water_band_ratio`: the sea's grey specular reflection,
+part of CERES' albedo, keeps its broadband level (or, for a run with ``--glint``, is left to the glint). The band
+maps are
 
     R_b,clear = K R_clear
     R_b,all   = (1 - f) K R_clear,state + f R_b,overcast
@@ -32,6 +35,7 @@ import numpy as np
 from simcore.environment.clouds import BAND_ALL_SKY, BAND_CLEAR_SKY, OVERCAST_ALBEDO, CloudWeather
 from simcore.environment.maps import ReflectivityMap, named_map
 from simcore.errors import InvalidInputError
+from simcore.radiometry import sea_surface
 from simcore.radiometry.spectral import NM_M, Spectrum, diode_curves, integral_of_product, responsivity, \
     solar_spectrum
 
@@ -124,7 +128,7 @@ def band_ratio(curve, rho):
     e_band = integral_of_product(curve, e)
     if not e_band > 0:
         raise InvalidInputError(f"the curve {curve.name!r} sees none of the solar spectrum (280-4000 nm)")
-    return (integral_of_product(curve, e, rho) / e_band) / (integral_of_product(e, rho) / integral_of_product(e))
+    return (integral_of_product(curve, e, rho) / e_band) / broadband_reflectance(rho)
 
 
 def class_band_ratios(curve):
@@ -132,35 +136,56 @@ def class_band_ratios(curve):
     return {c: band_ratio(curve, rho) for c, rho in class_toa_reflectance().items()}
 
 
-def band_factor(curve):
-    """Return K = sum_c f_c k_c (180, 360), south-first: each CERES cell's band over broadband clear-sky factor."""
+def band_factor(curve, glint_wind_m_s=None):
+    """Return K = sum_c f_c k_c (180, 360), south-first: each CERES cell's band over broadband clear-sky factor,
+    the water's k per cell (:func:`simcore.radiometry.sea_surface.water_band_ratio`: with the sea's specular
+    reflection, or without it for a run whose glint at ``glint_wind_m_s`` m/s adds it)."""
     classes, f_c = class_fractions()
     k = class_band_ratios(curve)
-    return np.tensordot(np.array([k[c] for c in classes]), f_c, axes=1)
+    k_water = sea_surface.water_band_ratio(k["water"], named_map("ceres2018-clear"), glint_wind_m_s)
+    return sum((k_water if c == "water" else k[c]) * f_c[i] for i, c in enumerate(classes))
 
 
-def band_maps_for_curve(curve, label):
+def broadband_reflectance(rho):
+    """Return the AM0-weighted broadband mean of the TOA reflectance ``rho`` (:class:`Spectrum`), dimensionless."""
+    e = solar_spectrum()
+    return integral_of_product(e, rho) / integral_of_product(e)
+
+
+@lru_cache(maxsize=1)
+def sea_ice_share():
+    """Return the annual ice share of each CERES cell's sea (180, 360), south-first
+    (:func:`simcore.radiometry.sea_surface.sea_ice_share`, the ice's reflectance that of the snow/ice class)."""
+    share = sea_surface.sea_ice_share(broadband_reflectance(class_toa_reflectance()["snow_ice"]))
+    share.setflags(write=False)
+    return share
+
+
+def band_maps_for_curve(curve, label, glint_wind_m_s=None):
     """Return (clear, all-sky) :class:`ReflectivityMap` of the CERES 2018 pair seen through ``curve``
-    (module docstring), named after ``label``."""
+    (module docstring), named after ``label``; ``glint_wind_m_s``: the wind of a run's glint, whose specular
+    reflection the maps' sea then leaves out (None: kept, a run without glint)."""
     clear, all_sky = named_map("ceres2018-clear"), named_map("ceres2018-all")
     if not (clear.south_first and clear.shape == (180, 360)):
         raise ValueError("the band factors are on the CERES grid, south-first 180 x 360")
-    k_map = band_factor(curve)
+    k_map = band_factor(curve, glint_wind_m_s)
     w = CloudWeather(clear, all_sky)
     f = w.cloud_fraction
     brighter = all_sky.values > w.overcast_albedo
     cloudy = np.where(brighter, k_map * w.cloudy_state, CLOUD_BAND_FACTOR * w.cloudy_state)
     all_b = (1.0 - f) * (k_map * w.clear_state) + f * cloudy
-    src = "CERES 2018 x class band ratios, simcore/data/band"
+    src = "CERES 2018 x class band ratios, simcore/data/band" + (
+        "" if glint_wind_m_s is None else f"; sea without its specular part, left to the {glint_wind_m_s:g} m/s glint")
     return (ReflectivityMap(k_map * clear.values, clear.lat_deg, clear.lon_deg, name=f"band {label} clear-sky ({src})"),
             ReflectivityMap(all_b, clear.lat_deg, clear.lon_deg, name=f"band {label} all-sky ({src})"))
 
 
 @lru_cache(maxsize=8)
-def band_maps(diode=DEFAULT_DIODE):
-    """Return (clear, all-sky) band maps of diode ``diode`` (its curve or its proxy's, :func:`band_curve`)."""
+def band_maps(diode=DEFAULT_DIODE, glint_wind_m_s=None):
+    """Return (clear, all-sky) band maps of diode ``diode`` (its curve or its proxy's, :func:`band_curve`); for a run
+    with glint at ``glint_wind_m_s`` m/s, the sea without its specular part (:func:`band_maps_for_curve`)."""
     curve, label = band_curve(diode)
-    return band_maps_for_curve(curve, label)
+    return band_maps_for_curve(curve, label, glint_wind_m_s)
 
 
 def parse_map_name(name):
@@ -183,26 +208,32 @@ def check_map_name(name):
         band_curve(parsed[1])
 
 
-def resolve_map(name):
-    """Return the :class:`ReflectivityMap` called ``name``: a band map (:func:`parse_map_name`) or any map
+def resolve_map(name, glint_wind_m_s=None):
+    """Return the :class:`ReflectivityMap` called ``name``: a band map (:func:`parse_map_name`; for a run with glint
+    at ``glint_wind_m_s`` m/s its sea without the specular part) or any map
     :func:`simcore.environment.maps.named_map` knows."""
     parsed = parse_map_name(name)
     if parsed is None:
         return named_map(name)
     kind, diode = parsed
-    clear, all_sky = band_maps(diode.upper())
+    clear, all_sky = band_maps(diode.upper(), _wind_key(glint_wind_m_s))
     return clear if kind == "clear" else all_sky
 
 
-def cloud_weather(name, scale_km=None):
+def _wind_key(glint_wind_m_s):
+    return None if glint_wind_m_s is None else float(glint_wind_m_s)
+
+
+def cloud_weather(name, scale_km=None, glint_wind_m_s=None):
     """Return the :class:`CloudWeather` whose mean is the all-sky map ``name`` ('ceres2018-all' or a band
-    all-sky map, whose overcast state is in-band: 0.70 x the cloud band factor)."""
+    all-sky map, whose overcast state is in-band: 0.70 x the cloud band factor; with glint at ``glint_wind_m_s``
+    m/s its sea without the specular part)."""
     parsed = parse_map_name(name)
     if parsed is None:
         return CloudWeather.for_map(name, scale_km)
     from simcore.environment.clouds import DEFAULT_SCALE_KM, check_cloud_options
     check_cloud_options(name, 0, scale_km)
-    clear, all_sky = band_maps(parsed[1].upper())
+    clear, all_sky = band_maps(parsed[1].upper(), _wind_key(glint_wind_m_s))
     km = DEFAULT_SCALE_KM if scale_km is None else float(scale_km)
     return CloudWeather(clear, all_sky, scale_m=km * 1e3, overcast_albedo=OVERCAST_ALBEDO * CLOUD_BAND_FACTOR)
 

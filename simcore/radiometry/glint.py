@@ -52,6 +52,7 @@ import math
 
 import numpy as np
 
+from simcore.constants import R_EARTH_MEAN_M
 from simcore.errors import InvalidInputError
 from simcore.radiometry.response import NUMPY_OPS
 
@@ -69,16 +70,63 @@ GLINT_OPTICAL_DEPTH = 0.1
 _COS_BETA_FLOOR = 1e-3
 
 
-def check_wind(wind_m_s):
+# The winds a run accepts (:func:`check_wind`): any calm sea (its check refined to resolve the spot,
+# :func:`check_refine`), up to MAX_WIND_M_S: beyond it the sea is not one Cox-Munk surface but storm foam and spray
+# (hurricane force begins at 32.7 m/s, Beaufort 12), and Cox-Munk's linear slope law (fitted on ~1-14 m/s, their
+# fig. 7) is far beyond its data.
+MAX_WIND_M_S = 30.0
+# The analytic check's reference sums the glint at cell centres: the spot must span several of its cells. The spot's
+# half-width on the ground is ~2 sigma h (the facet tilts that reach the observer, sigma the rms slope, h the
+# altitude). Seen on tilt0_fov90 600-s spans from 665 km with cells of 1.25 deg refined 2, 4 or 8 (issue 33): a
+# spot of 1.7 and 2.2 refined cells failed `sunsim validate` (1 and 2 m/s from 17:05Z, 0 m/s refined 4 from
+# 15:27Z), 2.6 passed (3 m/s from 17:05Z), 3.5 and 4.2 passed (1 m/s refined 4, 0 m/s refined 8).
+SPOT_CELLS = 3.0
+MAX_CHECK_REFINE = 8           # 64 sub-cells a cell: the check's sums grow with them (a calm sea's run only)
+
+
+def _wind(wind_m_s, option):
     """Return ``wind_m_s`` as a float, m/s, or raise InvalidInputError unless it is a finite speed >= 0."""
     try:
         w = float(wind_m_s)
     except (TypeError, ValueError):
-        raise InvalidInputError(f"--glint needs the wind speed in m/s (e.g. --glint 7), got {wind_m_s!r}") from None
+        raise InvalidInputError(f"{option} needs the wind speed in m/s (e.g. 7), got {wind_m_s!r}") from None
     if not math.isfinite(w) or w < 0:
-        raise InvalidInputError(f"--glint WIND_M_S must be a finite wind speed >= 0 m/s (Cox-Munk's fit spans about "
-                                f"1-14 m/s; e.g. --glint 7), got {wind_m_s}")
+        raise InvalidInputError(f"{option} must be a finite wind speed >= 0 m/s (Cox-Munk's fit spans about "
+                                f"1-14 m/s; e.g. 7), got {wind_m_s}")
     return w
+
+
+def check_wind(wind_m_s, option="--glint WIND_M_S"):
+    """Return the wind of a run's glint ``wind_m_s`` as a float, m/s, or raise a one-line InvalidInputError (naming
+    ``option``) unless it is a finite speed in 0..MAX_WIND_M_S (why: the constant's comment)."""
+    w = _wind(wind_m_s, option)
+    if w > MAX_WIND_M_S:
+        raise InvalidInputError(
+            f"{option} {w:g} m/s is above the {MAX_WIND_M_S:g} m/s a run accepts: a sea-wide wind beyond hurricane "
+            f"force is not physical, and Cox-Munk's slope law (fitted up to ~14 m/s) does not describe storm foam; "
+            f"give {MAX_WIND_M_S:g} m/s or less")
+    return w
+
+
+def check_refine(wind_m_s, altitude_m, cell_deg, base):
+    """Return the analytic check's refinement for a glint at ``wind_m_s`` seen from ``altitude_m`` (the run's lowest)
+    on map cells ``cell_deg`` wide (in longitude, their larger side on the shipped grids): the smallest of base,
+    2 base, 4 base ... whose sub-cells the spot's half-width 2 sigma h spans SPOT_CELLS times (the constant's
+    comment). A calm sea from a low orbit that would need more than MAX_CHECK_REFINE is a one-line
+    InvalidInputError with the wind that can be checked."""
+    cell_m = math.radians(cell_deg) * R_EARTH_MEAN_M
+    factor = int(base)
+    while 2.0 * math.sqrt(float(mean_square_slope(wind_m_s))) * altitude_m * factor < SPOT_CELLS * cell_m:
+        factor *= 2
+    if factor > MAX_CHECK_REFINE:
+        sigma = SPOT_CELLS * cell_m / (2.0 * altitude_m * MAX_CHECK_REFINE)
+        w_min = max(sigma * sigma - MSS_OFFSET, 0.0) / MSS_PER_WIND_S_M
+        raise InvalidInputError(
+            f"--glint WIND_M_S {wind_m_s:g} m/s from {altitude_m / 1e3:.0f} km: the glint spot (half-width "
+            f"~{2 * math.sqrt(float(mean_square_slope(wind_m_s))) * altitude_m / 1e3:.0f} km) is too small "
+            f"for the analytic check's reference cells even refined {MAX_CHECK_REFINE} x {MAX_CHECK_REFINE}; give "
+            f"{math.ceil(w_min * 10) / 10:g} m/s or more at this altitude")
+    return factor
 
 
 def mean_square_slope(wind_m_s):
@@ -162,7 +210,7 @@ class SunGlint:
     tau: float = GLINT_OPTICAL_DEPTH
 
     def __post_init__(self):
-        object.__setattr__(self, "wind_m_s", check_wind(self.wind_m_s))
+        object.__setattr__(self, "wind_m_s", _wind(self.wind_m_s, "the glint's wind"))
         if not (math.isfinite(self.index) and self.index > 1.0):
             raise ValueError(f"the water's refractive index must be a finite number > 1, got {self.index}")
         if not (math.isfinite(self.tau) and self.tau >= 0.0):
@@ -192,7 +240,7 @@ class SunGlint:
         """Return the run file's attributes that say which glint it rendered."""
         return {"glint_model": "Cox-Munk 1954 isotropic slopes, unpolarised Fresnel, Smith shadowing and masking, "
                                "two-way direct transmittance of the atmosphere; added to the map's diffuse "
-                               "reflectivity on each cell's sea fraction (GSHHG; none under the overcast cells of "
-                               "cloud weather)",
+                               "reflectivity on each cell's open sea fraction (GSHHG less the annual sea ice "
+                               "from CERES; none under the overcast cells of cloud weather)",
                 "glint_wind_m_s": self.wind_m_s, "glint_water_index": self.index,
                 "glint_mean_square_slope": self.mss, "glint_optical_depth": self.tau}

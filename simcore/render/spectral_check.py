@@ -8,7 +8,9 @@ quadrature. This module never reads them: each cell has the spectral reflectance
 with the class shares f_c (MCD12C1), the class TOA spectra rho_c, rhobar_c = int E rho_c / int E the
 class's broadband reflectance, and per cell a the reflectance the shape scales (clear sky: R_clear; all
 sky: the clear state's share (1 - f) R_clear,state, plus f R_ovc where a cell is brighter than thick
-cloud) and b the grey cloud's part (f R_ovc x the cloud band factor) -- :func:`cell_spectra`. Its
+cloud) and b the grey part: the cloud's (f R_ovc x the cloud band factor) and the sea's specular reflection
+(a f_water s, its water then weighted (1 - s): :func:`simcore.radiometry.sea_surface.specular_share`) --
+:func:`cell_spectra`. Its
 S E-weighted band mean is the band map's value exactly (linearity; :meth:`CellSpectra.band_mean`).
 
 The estimator (:func:`spectral_albedo`) draws per lane a direction d uniformly in the cone the Earth fills
@@ -46,6 +48,7 @@ from simcore import _llvm
 from simcore.environment.clouds import CloudWeather
 from simcore.environment.maps import named_map
 from simcore.radiometry.band import CLOUD_BAND_FACTOR, class_fractions, class_toa_reflectance
+from simcore.radiometry.sea_surface import specular_share
 from simcore.radiometry.spectral import NM_M, integral_of_product, solar_spectrum
 
 SPECTRAL_VARIANT = "llvm_ad_spectral"
@@ -98,8 +101,13 @@ def cell_spectra(kind="clear", *, flip_shares=False):
     e_all = integral_of_product(e)
     spectra = tuple(rho[c] for c in classes)
     rhobar = np.array([integral_of_product(e, s) / e_all for s in spectra])
-    g = f_c / rhobar[:, None, None]
     clear = named_map("ceres2018-clear")
+    # the sea's grey specular share s of the clear-sky albedo (simcore.radiometry.sea_surface): of the water's
+    # share f_w, the part (1 - s) has 6S's water spectrum, the part s is grey (added to b below)
+    share, iw = specular_share(clear), classes.index("water")
+    grey = f_c[iw] * share
+    g = f_c / rhobar[:, None, None]
+    g[iw] *= 1.0 - share
     if kind == "clear":
         a, b = clear.values, np.zeros(clear.shape)
     else:
@@ -108,6 +116,7 @@ def cell_spectra(kind="clear", *, flip_shares=False):
         brighter = w.all_sky.values > w.overcast_albedo
         a = (1.0 - f) * w.clear_state + np.where(brighter, f * w.cloudy_state, 0.0)
         b = np.where(brighter, 0.0, f * CLOUD_BAND_FACTOR * w.cloudy_state)
+    b = b + a * grey
     name = f"CERES 2018 {kind}-sky x class spectra" + (" (shares flipped N-S)" if flip_shares else "")
     return CellSpectra(tuple(classes), spectra, np.ascontiguousarray(g), np.asarray(a, float),
                        np.asarray(b, float), name)

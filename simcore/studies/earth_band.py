@@ -35,6 +35,7 @@ from simcore.errors import InvalidInputError
 from simcore.pipeline.run import PreparedRun, execute, open_run
 from simcore.plots import save_figure
 from simcore.radiometry import band
+from simcore.radiometry.glint import check_wind
 from simcore.studies.cross_map import evaluate_cross_map
 from simcore.studies.earth_band_page import write_page
 from simcore.studies.reproduce import (DAY_START, DIODE, SPANS, check_passed, read_check, refuse_failed,
@@ -57,12 +58,7 @@ def check_inputs(span, wind_m_s, cloud_seeds):
     from simcore.environment.clouds import check_cloud_options
     if span not in SPANS:
         raise InvalidInputError(f"--span must be one of {', '.join(SPANS)}, got {span!r}")
-    try:
-        ok = math.isfinite(float(wind_m_s)) and float(wind_m_s) > 0
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise InvalidInputError(f"--wind must be a positive wind speed in m/s (e.g. {DEFAULT_WIND_M_S:g}), got {wind_m_s}")
+    check_wind(wind_m_s, "--wind")
     seeds = list(cloud_seeds)
     if not seeds:
         raise InvalidInputError("--cloud-seeds needs at least one seed")
