@@ -43,8 +43,11 @@ from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
-from simcore.pipeline.preflight import REFLECTED_SAMPLES, check_map, check_numbers, check_variant, tle_age_note
-from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
+from simcore.pipeline.preflight import (REFLECTED_SAMPLES, attitude_times_note, check_map, check_numbers,
+                                       check_reflected_resources, check_variant, reflected_ignored_note, tle_age_note)
+from simcore.pipeline.runfile import add_checksums, verify_checksums, writer as _writer
+from simcore.pipeline.store import (ChunkStore, atomic_write, check_writable, chunk_ranges, is_disk_full,
+                                    missing_ranges, spec_digest)
 from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
 
 # The analytic reference for the albedo check uses cells refined 2 x 2; its estimated discretisation error
@@ -140,7 +143,7 @@ def study_geometry(opts):
     epochs = Epochs.range(opts.start, duration, opts.step_s)
     t_s = epochs.seconds_since(epochs[0])
     if opts.attitude_file and opts.dynamics:
-        raise ValueError("--attitude and --dynamics both set the attitude; give one of them")
+        raise InvalidInputError("--attitude and --dynamics both set the attitude; give one of them")
     if opts.attitude_file:
         history = _attitude.Attitude.from_file(opts.attitude_file)
         span = history.t_s[-1] - history.t_s[0]
@@ -770,7 +773,12 @@ def prepare(opts):
         raise InvalidInputError(f"all {study.config.n_diodes} diodes of {study.config.name} are dead (--dead "
                                 f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
     study.variant = variant
-    study.notes = [n for n in (tle_age_note(study.orbit, study.epochs),) if n]
+    notes = [tle_age_note(study.orbit, study.epochs), reflected_ignored_note(opts.reflected_samples, study.config)]
+    if notes[1] is None:        # the reflected component is traced: its wavefront must fit
+        check_reflected_resources(opts.reflected_samples, len(study.epochs), study.config.n_diodes)
+    if opts.attitude_file:
+        notes.append(attitude_times_note(_attitude.Attitude.from_file(opts.attitude_file).t_s, opts.attitude_file))
+    study.notes = [n for n in notes if n]
     return study
 
 
@@ -793,7 +801,7 @@ def execute(opts, *, progress=None, log=None):
     finished = _finished(opts, log)
     if finished is not None:
         return finished
-    store = ChunkStore(opts.output, opts.spec()).open()
+    store = ChunkStore(opts.output, opts.spec(), writer=_writer(study)).open()
     try:
         # Another process may have finished this output while we waited for its lock.
         finished = _finished(opts, log)
@@ -838,6 +846,18 @@ def _render_and_write(study, store, progress, log):
     from tqdm import tqdm
     bar = tqdm(total=n, initial=sum(b - a for a, b in done), unit="epoch",
                disable=(not sys.stderr.isatty()) if progress is None else not progress, desc="rendering")
+    try:
+        return _write_chunks_and_file(study, store, todo, bar, n)
+    except OSError as exc:
+        if is_disk_full(exc, store.folder):
+            covered = sum(b - a for a, b in store.done()) == n
+            raise store.disk_full(exc, "writing the final file" if covered else "writing a chunk", n) from None
+        raise
+
+
+def _write_chunks_and_file(study, store, todo, bar, n):
+    """Render and store the chunks ``todo``, then write the run file from all of them; return (path, ds, report)."""
+    opts = study.opts
     pending = None          # the chunk being written by the worker thread while the next one renders
     try:
         for start, stop in todo:
@@ -857,7 +877,7 @@ def _render_and_write(study, store, progress, log):
     ds, report = build_dataset(study, data, variant)
 
     def write(tmp):
-        ds.to_netcdf(tmp, engine="h5netcdf")
+        add_checksums(ds).to_netcdf(tmp, engine="h5netcdf")
     # The temporary file lies in the partial folder: a crash here leaves it where the resume cleans up.
     atomic_write(opts.output, write, tmp_dir=store.folder)
     store.remove()
@@ -884,7 +904,7 @@ def open_run(path):
     if ds.attrs.get("title") != "sunsim diode irradiance run" or missing:
         raise InvalidInputError(f"{path} is not a sunsim run file (missing {', '.join(missing) or 'its sunsim title'}); "
                          "give a file written by 'sunsim run'")
-    return ds
+    return verify_checksums(ds, path)
 
 
 def check_run(ds):
@@ -984,7 +1004,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     new.attrs["analytic_recomputed_with"] = json.dumps(_versions(), sort_keys=True)
 
     def write(tmp):
-        new.to_netcdf(tmp, engine="h5netcdf")
+        add_checksums(new).to_netcdf(tmp, engine="h5netcdf")
     ds.close()
     atomic_write(path, write)
     return report

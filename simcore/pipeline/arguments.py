@@ -1,0 +1,107 @@
+"""The checks of a parsed command line, per command, before the command does anything.
+
+:func:`check_arguments` is called by :func:`simcore.cli.main` on argparse's namespace before the command's
+function runs. It refuses (one :class:`~simcore.errors.UserError`) what can be told from the options alone:
+seeds, rates, winds, picture sizes, conflicting options, worker counts, a missing optional dependency.
+Checks that need the files read or the geometry computed run in :func:`simcore.pipeline.run.prepare` and the
+other pipeline entry points, all through the functions of :mod:`simcore.pipeline.preflight`.
+"""
+from simcore.environment.attitude import DEFAULT_TUMBLE_RATE_DEG_S
+from simcore.errors import InvalidInputError
+from simcore.pipeline import preflight
+
+# the largest picture side `sunsim view` draws (pixels)
+VIEW_MAX_SIDE = 16384
+
+
+def _spin_rate(args):
+    """Refuse --spin-rate next to --attitude (the file gives the attitude: the rate would be ignored), check the
+    rate, then fill in the default (the parser leaves it None so that a given rate can be told from the default)."""
+    if getattr(args, "spin_rate", None) is not None and getattr(args, "attitude", None):
+        raise InvalidInputError(f"--spin-rate {args.spin_rate:g} has no effect with --attitude {args.attitude} (the "
+                                "file gives the attitude); drop --spin-rate")
+    if hasattr(args, "spin_rate"):
+        if args.spin_rate is None:
+            args.spin_rate = DEFAULT_TUMBLE_RATE_DEG_S
+        preflight.check_spin_rate(args.spin_rate)
+
+
+def _run(args):
+    _spin_rate(args)
+    if args.attitude and args.dynamics:
+        raise InvalidInputError("--attitude and --dynamics both set the attitude; give one of them")
+
+
+def _view(args):
+    _spin_rate(args)
+    preflight.check_seed(args.seed)
+    if args.config_pos and args.config and args.config_pos != args.config:
+        raise InvalidInputError(f"two configurations given ({args.config_pos} and --config {args.config}); give one")
+    if args.spp < 1:
+        raise InvalidInputError(f"--spp must be a positive number of samples per pixel, got {args.spp}")
+    w, h = args.resolution
+    if not (1 <= w <= VIEW_MAX_SIDE and 1 <= h <= VIEW_MAX_SIDE):
+        raise InvalidInputError(f"--resolution W H must be whole pixels from 1 to {VIEW_MAX_SIDE}, got {w} {h}")
+    preflight.check_view_size(w, h, args.spp)
+    if args.close_up and args.map is not None:
+        raise InvalidInputError("--map colours the Earth, which --close-up leaves out; drop one of them")
+    if args.close_up and args.clouds is not None:
+        raise InvalidInputError("--clouds colours the Earth, which --close-up leaves out; drop one of them")
+    if args.output is not None and not args.output.lower().endswith(".png"):
+        raise InvalidInputError(f"-o {args.output}: the picture is a PNG; give a file name ending in .png")
+    if args.clouds is None and args.cloud_scale_km is not None:
+        raise InvalidInputError("--cloud-scale-km sets the size of cloud weather, which needs --clouds SEED; "
+                                "add --clouds or drop --cloud-scale-km")
+
+
+def _estimate(args):
+    preflight.check_seed(args.seed)
+    if args.initial_error is not None and not 0 <= args.initial_error <= 180:
+        raise InvalidInputError(f"--initial-error must be an angle between 0 and 180 deg, got {args.initial_error}")
+
+
+def _sweep(args):
+    preflight.check_workers(args.workers, args.scheduler)
+    preflight.check_seeds(args.seeds, "--seeds")
+    preflight.check_seeds(args.clouds, "--clouds")
+    for rate in args.spin_rates:
+        preflight.check_spin_rate(rate, "--spin-rates")
+    preflight.require_dask("sweep")
+
+
+def _attitude_study(args):
+    preflight.check_workers(args.workers, args.scheduler)
+    preflight.check_seeds(args.seeds, "--seeds")
+    preflight.require_dask("attitude-study")
+
+
+def _earth_study(args):
+    preflight.check_seeds(args.cloud_seeds, "--cloud-seeds")
+    preflight.check_glint(args.wind, "--wind")
+
+
+def _reproduce(args):
+    preflight.check_spin_rate(args.second_spin, "--second-spin")
+
+
+def _seed(args):
+    preflight.check_seed(args.seed)
+
+
+def _spectral_check(args):
+    preflight.check_seed(args.seed)
+    preflight.check_seed(args.seed + len(args.diode) - 1, "--seed (+1 for each further --diode)")
+
+
+_CHECKS = {"run": _run, "summary": _spin_rate, "view": _view, "estimate": _estimate, "sweep": _sweep,
+           "attitude-study": _attitude_study, "earth-study": _earth_study, "reproduce": _reproduce,
+           "response": _seed, "spectral-check": _spectral_check}
+
+
+def check_arguments(args):
+    """Return ``args`` (argparse's namespace of one command) after the checks of its command; raise a UserError
+    for the first that fails. Nothing has been read, written or started yet."""
+    check = _CHECKS.get(getattr(args, "command", None))
+    if check is not None:
+        check(args)
+    return args

@@ -1,0 +1,68 @@
+"""Integrity of run files and of the chunks behind them.
+
+A run file written by this sunsim carries a ``checksums`` attribute: a SHA-256 digest of each numeric variable
+(its dtype, shape and bytes). :func:`verify_checksums` recomputes them when the file is opened, so a variable that
+was zeroed, cut short or changed since it was written is refused in one line instead of being estimated. Files
+written before the checksums existed are accepted with a note (nothing to compare with).
+
+:func:`writer` names who writes a run's chunks (sunsim version, renderer variant): a partial run is resumed only
+by the same writer (:class:`simcore.pipeline.store.ChunkStore`).
+"""
+import hashlib
+import json
+import sys
+
+import numpy as np
+
+from simcore._version import __version__
+from simcore.errors import InvalidInputError
+
+CHECKSUMS_ATTR = "checksums"
+
+
+def _digest(values):
+    a = np.ascontiguousarray(values)
+    h = hashlib.sha256(f"{a.dtype.str}{a.shape}".encode())
+    h.update(a.tobytes())
+    return h.hexdigest()[:32]
+
+
+def _numeric(ds):
+    return [name for name in sorted(ds.data_vars) if ds[name].dtype.kind in "biuf"]
+
+
+def add_checksums(ds):
+    """Set ``ds.attrs['checksums']`` (JSON: variable name -> digest of each numeric variable); return ``ds``."""
+    ds.attrs[CHECKSUMS_ATTR] = json.dumps({name: _digest(ds[name].values) for name in _numeric(ds)}, sort_keys=True)
+    return ds
+
+
+def verify_checksums(ds, path, note=None):
+    """Return ``ds`` if its variables match the checksums it carries; raise InvalidInputError naming the first
+    that does not. A file without checksums (older sunsim) is returned after a note (``note``: a function of
+    one line; default: printed on stderr)."""
+    stored = ds.attrs.get(CHECKSUMS_ATTR)
+    if stored is None:
+        (note or (lambda m: print(m, file=sys.stderr)))(
+            f"note: {path} carries no checksums (written by a sunsim before they were added): its variables "
+            "are used unverified")
+        return ds
+    try:
+        stored = json.loads(stored)
+    except ValueError:
+        raise InvalidInputError(f"{path}: its checksums attribute is unreadable, so the file cannot be verified; "
+                                "render it again with the same 'sunsim run' command") from None
+    for name, digest in sorted(stored.items()):
+        if name not in ds:
+            raise InvalidInputError(f"{path}: the variable {name} is missing although the file's checksums list it: "
+                                    "the file is damaged; render it again with the same 'sunsim run' command")
+        if _digest(ds[name].values) != digest:
+            raise InvalidInputError(f"{path}: the variable {name} does not match its checksum (zeroed, cut short or "
+                                    "changed since sunsim wrote it): the file is damaged; render it again with the "
+                                    "same 'sunsim run' command")
+    return ds
+
+
+def writer(study):
+    """Return who writes ``study``'s chunks: {"sunsim": version, "variant": the Mitsuba variant it renders with}."""
+    return {"sunsim": __version__, "variant": getattr(study, "variant", None)}
