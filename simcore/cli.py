@@ -9,6 +9,7 @@ import numpy as np
 from simcore._version import __version__
 from simcore.constants import E_SUN_W_M2
 from simcore.errors import InvalidInputError, UserError
+from simcore.pipeline.arguments import NotedGiven
 
 DEFAULT_TLE_HELP = "TLE file (2- or 3-line; default: the shipped ESTCube-1 set, epoch 2016-07-27)"
 
@@ -32,8 +33,8 @@ def _add_orbit_options(p):
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="seconds to simulate (default: one orbital period)")
     p.add_argument("--step", type=float, default=1.0, metavar="S", help="seconds between epochs (default: %(default)s)")
-    p.add_argument("--spin-rate", type=float, default=None, metavar="DEG_S",
-                   help="tumble rate about the body diagonal (default: 1.9 deg/s, thesis)")
+    p.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S", action=NotedGiven,
+                   help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
 
 
 def _geometry(args):
@@ -750,8 +751,8 @@ def build_parser():
     v.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
     v.add_argument("--start", default="2016-07-02T00:00:00Z",
                    help="the run's start, where its tumble begins aligned with GCRS (default: %(default)s)")
-    v.add_argument("--spin-rate", type=float, default=None, metavar="DEG_S",
-                   help="tumble rate about the body diagonal (default: 1.9 deg/s, thesis)")
+    v.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S", action=NotedGiven,
+                   help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
     v.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz whose first row is --start "
                                                       "(overrides the tumble), as for `run`")
     v.add_argument("-o", "--output", default=None, metavar="FILE.png",

@@ -6,7 +6,8 @@ seeds, rates, winds, picture sizes, conflicting options, worker counts, a missin
 Checks that need the files read or the geometry computed run in :func:`simcore.pipeline.run.prepare` and the
 other pipeline entry points, all through the functions of :mod:`simcore.pipeline.preflight`.
 """
-from simcore.environment.attitude import DEFAULT_TUMBLE_RATE_DEG_S
+import argparse
+
 from simcore.errors import InvalidInputError
 from simcore.pipeline import preflight
 
@@ -14,15 +15,22 @@ from simcore.pipeline import preflight
 VIEW_MAX_SIDE = 16384
 
 
+class NotedGiven(argparse.Action):
+    """argparse's plain store, noting that the option was given (``args.<dest>_given``): a value the user typed
+    can then be told from the default (--spin-rate next to --attitude)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        setattr(namespace, self.dest + "_given", True)
+
+
 def _spin_rate(args):
-    """Refuse --spin-rate next to --attitude (the file gives the attitude: the rate would be ignored), check the
-    rate, then fill in the default (the parser leaves it None so that a given rate can be told from the default)."""
-    if getattr(args, "spin_rate", None) is not None and getattr(args, "attitude", None):
+    """Refuse --spin-rate next to --attitude (the file gives the attitude: the rate would be ignored); check the
+    rate."""
+    if getattr(args, "spin_rate_given", False) and getattr(args, "attitude", None):
         raise InvalidInputError(f"--spin-rate {args.spin_rate:g} has no effect with --attitude {args.attitude} (the "
                                 "file gives the attitude); drop --spin-rate")
     if hasattr(args, "spin_rate"):
-        if args.spin_rate is None:
-            args.spin_rate = DEFAULT_TUMBLE_RATE_DEG_S
         preflight.check_spin_rate(args.spin_rate)
 
 

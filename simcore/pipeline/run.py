@@ -45,8 +45,8 @@ from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
 from simcore.pipeline.preflight import (REFLECTED_SAMPLES, attitude_times_note, check_map, check_numbers,
                                        check_reflected_resources, check_variant, reflected_ignored_note, tle_age_note)
-from simcore.pipeline.runfile import add_checksums, verify_checksums, writer as _writer
-from simcore.pipeline.store import (ChunkStore, atomic_write, check_writable, chunk_ranges, is_disk_full,
+from simcore.pipeline.runfile import add_checksums, size_bound, verify_checksums, writer as _writer
+from simcore.pipeline.store import (ChunkStore, atomic_write, check_room, check_writable, chunk_ranges, is_disk_full,
                                     missing_ranges, spec_digest)
 from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
 
@@ -878,6 +878,7 @@ def _write_chunks_and_file(study, store, todo, bar, n):
 
     def write(tmp):
         add_checksums(ds).to_netcdf(tmp, engine="h5netcdf")
+    check_room(store.folder, size_bound(ds))
     # The temporary file lies in the partial folder: a crash here leaves it where the resume cleans up.
     atomic_write(opts.output, write, tmp_dir=store.folder)
     store.remove()

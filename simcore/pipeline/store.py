@@ -55,6 +55,14 @@ def is_disk_full(exc, folder=None):
     return st.f_bavail * st.f_frsize < 1 << 20
 
 
+def check_room(folder, nbytes):
+    """Raise OSError(ENOSPC) if ``folder``'s file system has fewer than ``nbytes`` free: asked before an HDF5 file
+    is written, because HDF5 meeting a full disk mid-file leaves its library in a state that crashes at exit."""
+    st = os.statvfs(folder)
+    if st.f_bavail * st.f_frsize < nbytes:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
 def _bytes(folder):
     """Return the size of the files in ``folder`` (bytes)."""
     total = 0
@@ -205,12 +213,11 @@ class ChunkStore:
         """Return the one-line DiskFullError of a full disk met while ``doing`` (what was being written)."""
         done = self.done()
         kept = sum(b - a for a, b in done)
-        per_epoch = _bytes(self.folder) / kept if kept else 0.0
-        need = f"; about {per_epoch * (n_total - kept) * 2 / 1e6:.1f} MB more are needed" if kept else ""
         return DiskFullError(
             f"the disk holding {self.final_path} is full ({exc.strerror or exc}) while {doing}: the {len(done)} "
-            f"finished chunk(s) ({kept} of {n_total} epochs) are safe in {self.folder}{need}; free space and run "
-            "the same command again to resume")
+            f"finished chunk(s) ({kept} of {n_total} epochs, {_bytes(self.folder) / 1e6:.2g} MB) are safe in "
+            f"{self.folder}; free space (df -h {os.path.dirname(os.path.abspath(self.final_path))}) and run the same "
+            "command again to resume")
 
     @staticmethod
     def stored_digest(final_path):
