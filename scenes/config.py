@@ -804,7 +804,7 @@ class SatelliteConfig:
                               f"({', '.join(list_configs())}) or an existing .toml path")
         try:
             data = tomllib.loads(path.read_text())
-        except tomllib.TOMLDecodeError as exc:
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{path}: not valid TOML ({exc})") from None
         data.setdefault("name", path.stem)
         return cls.from_dict(data, source=str(path), extra_flat_diodes=extra_flat_diodes, dead=dead)

@@ -9,7 +9,7 @@ import numpy as np
 from simcore._version import __version__
 from simcore.constants import E_SUN_W_M2
 from simcore.errors import InvalidInputError, UserError
-from simcore.pipeline.arguments import NotedGiven
+from simcore.pipeline.arguments import NotedGiven, OneLineParser
 
 DEFAULT_TLE_HELP = "TLE file (2- or 3-line; default: the shipped ESTCube-1 set, epoch 2016-07-27)"
 
@@ -94,7 +94,7 @@ def _add_render_options(p):
                    help="torque-free Euler dynamics instead of the constant tumble, starting at --spin-rate about "
                         "the body diagonal; INERTIA in kg m^2: 'IXX,IYY,IZZ' or 'IXX,IYY,IZZ,IXY,IXZ,IYZ'")
     p.add_argument("--accuracy", nargs=2, type=float, metavar=("DIRECT", "ALBEDO"), default=(0.002, 0.01),
-                   help="target relative standard errors of direct and albedo irradiance (default 0.002 0.01)")
+                   action=NotedGiven, help="target relative standard errors of direct and albedo irradiance (default 0.002 0.01)")
     p.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"),
                    help="fixed samples per diode-epoch instead of --accuracy (direct: a power of 4)")
     _add_reflected_samples(p)
@@ -711,7 +711,7 @@ def _add_spectral_check_parser(sub):
 
 
 def build_parser():
-    p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
+    p = OneLineParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {__version__}")
     p.add_argument("--debug", action="store_true",
                    help="show the full traceback of a user error too (accepted anywhere on the line)")

@@ -7,12 +7,29 @@ Checks that need the files read or the geometry computed run in :func:`simcore.p
 other pipeline entry points, all through the functions of :mod:`simcore.pipeline.preflight`.
 """
 import argparse
+import difflib
+import re
+import sys
 
 from simcore.errors import InvalidInputError
 from simcore.pipeline import preflight
 
 # the largest picture side `sunsim view` draws (pixels)
 VIEW_MAX_SIDE = 16384
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse's parser whose errors are one line (what is wrong, a close match for a mistyped choice or
+    command, where the help is) instead of the usage block and the error."""
+
+    def error(self, message):
+        m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if m:
+            choices = re.findall(r"'([^']*)'", m.group(2))
+            close = difflib.get_close_matches(m.group(1), choices, n=1, cutoff=0.6)
+            message += f"; did you mean '{close[0]}'?" if close else ""
+        print(f"{self.prog}: error: {message}; see '{self.prog} --help'", file=sys.stderr)
+        sys.exit(2)
 
 
 class NotedGiven(argparse.Action):
@@ -38,6 +55,12 @@ def _run(args):
     _spin_rate(args)
     if args.attitude and args.dynamics:
         raise InvalidInputError("--attitude and --dynamics both set the attitude; give one of them")
+    if getattr(args, "accuracy_given", False) and args.samples:
+        raise InvalidInputError("--accuracy and --samples both set the sample counts (a target accuracy, or fixed "
+                                "counts); give one of them")
+    if args.dynamics:
+        from simcore.environment.dynamics import parse_inertia
+        parse_inertia(args.dynamics)
 
 
 def _view(args):
@@ -64,6 +87,8 @@ def _view(args):
 
 def _estimate(args):
     preflight.check_seed(args.seed)
+    if args.plots:
+        preflight.check_output_folder(args.plots, "--plots folder")
     if args.initial_error is not None and not 0 <= args.initial_error <= 180:
         raise InvalidInputError(f"--initial-error must be an angle between 0 and 180 deg, got {args.initial_error}")
 
@@ -72,6 +97,7 @@ def _sweep(args):
     preflight.check_workers(args.workers, args.scheduler)
     preflight.check_seeds(args.seeds, "--seeds")
     preflight.check_seeds(args.clouds, "--clouds")
+    preflight.check_output_folder(args.folder, "--folder")
     for rate in args.spin_rates:
         preflight.check_spin_rate(rate, "--spin-rates")
     preflight.require_dask("sweep")
@@ -80,16 +106,31 @@ def _sweep(args):
 def _attitude_study(args):
     preflight.check_workers(args.workers, args.scheduler)
     preflight.check_seeds(args.seeds, "--seeds")
+    _folders(args)
     preflight.require_dask("attitude-study")
+
+
+def _folders(args):
+    """The --folder and --page of a study with a results page: creatable and writable."""
+    preflight.check_output_folder(args.folder, "--folder")
+    if args.page:
+        preflight.check_output_folder(args.page, "--page")
 
 
 def _earth_study(args):
     preflight.check_seeds(args.cloud_seeds, "--cloud-seeds")
     preflight.check_glint(args.wind, "--wind")
+    _folders(args)
 
 
 def _reproduce(args):
     preflight.check_spin_rate(args.second_spin, "--second-spin")
+    _folders(args)
+
+
+def _coverage(args):
+    if not args.no_plot:
+        preflight.check_output_folder(args.plot_dir, "--plot-dir")
 
 
 def _seed(args):
@@ -97,12 +138,15 @@ def _seed(args):
 
 
 def _spectral_check(args):
+    from simcore.radiometry.band import band_curve
     preflight.check_seed(args.seed)
     preflight.check_seed(args.seed + len(args.diode) - 1, "--seed (+1 for each further --diode)")
+    for diode in args.diode:
+        band_curve(diode)
 
 
 _CHECKS = {"run": _run, "summary": _spin_rate, "view": _view, "estimate": _estimate, "sweep": _sweep,
-           "attitude-study": _attitude_study, "earth-study": _earth_study, "reproduce": _reproduce,
+           "attitude-study": _attitude_study, "earth-study": _earth_study, "reproduce": _reproduce, "coverage": _coverage,
            "response": _seed, "spectral-check": _spectral_check}
 
 

@@ -177,6 +177,13 @@ def check_glint(wind_m_s, option="--glint"):
     """Return the wind speed (m/s) of a sea glint option, or raise InvalidInputError: negative, not finite, or above
     WIND_MAX_M_S, where Cox & Munk's model of the sea surface no longer applies."""
     from simcore.radiometry.glint import check_wind
+    if option != "--glint":
+        try:
+            ok = math.isfinite(float(wind_m_s)) and float(wind_m_s) >= 0
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InvalidInputError(f"{option} must be a finite wind speed >= 0 m/s (e.g. 7), got {wind_m_s}")
     w = check_wind(wind_m_s)
     if w > WIND_MAX_M_S:
         raise InvalidInputError(f"{option} {wind_m_s:g} m/s is above {WIND_MAX_M_S:g} m/s (hurricane force: the sea is "
@@ -229,21 +236,25 @@ def check_view_size(width, height, spp):
                                 "this --resolution, or a smaller --resolution")
 
 
-def check_reflected_resources(n_paths, n_epochs, n_diodes, memory_bytes=None):
-    """Raise InvalidInputError unless the reflected wavefront of ``n_paths`` per diode-epoch (up to
+def check_wave_resources(option, n_paths, n_epochs, n_diodes, memory_bytes=None):
+    """Raise InvalidInputError unless a wavefront of ``n_paths`` per diode-epoch (``option``'s value; up to
     REFLECTED_BATCH_EPOCHS epochs x ``n_diodes`` at once) fits in Dr.Jit's lanes and in the available memory."""
-    lanes = min(int(n_epochs), REFLECTED_BATCH_EPOCHS) * int(n_diodes) * int(n_paths)
+    tasks = min(int(n_epochs), REFLECTED_BATCH_EPOCHS) * int(n_diodes)
+    lanes = tasks * int(n_paths)
     memory = available_memory_bytes() if memory_bytes is None else memory_bytes
     need = lanes * REFLECTED_BYTES_PER_LANE
     if lanes > MAX_LANES or need > memory:
-        per_task = min(MAX_LANES, memory // REFLECTED_BYTES_PER_LANE) // (min(int(n_epochs), REFLECTED_BATCH_EPOCHS)
-                                                                          * int(n_diodes))
-        m = math.isqrt(max(per_task, 0) // 4)
-        most = f"at most {4 * m * m} here" if m >= 8 else "this layout cannot afford even the smallest, 256"
-        raise InvalidInputError(f"--reflected-samples {n_paths} traces up to {lanes:.3g} paths at once ({min(n_epochs, REFLECTED_BATCH_EPOCHS)} "
+        m = math.isqrt(max(min(MAX_LANES, memory // REFLECTED_BYTES_PER_LANE) // tasks, 0) // 4)
+        most = f"at most {4 * m * m} here" if m >= 8 else f"this layout cannot afford even the smallest, {MIN_SAMPLES}"
+        raise InvalidInputError(f"{option} {n_paths} traces up to {lanes:.3g} paths at once ({tasks // n_diodes} "
                                 f"epochs x {n_diodes} diodes x {n_paths}), ~{need / 2 ** 30:.3g} GiB at "
                                 f"{REFLECTED_BYTES_PER_LANE} bytes a path, beyond this machine's "
-                                f"{memory / 2 ** 30:.3g} GiB available and Dr.Jit's 2^32 lanes: {most}")
+                                f"{memory / 2 ** 30:.3g} GiB available or Dr.Jit's 2^32 lanes: {most}")
+
+
+def check_reflected_resources(n_paths, n_epochs, n_diodes, memory_bytes=None):
+    """check_wave_resources of --reflected-samples."""
+    check_wave_resources("--reflected-samples", n_paths, n_epochs, n_diodes, memory_bytes)
 
 
 def reflected_ignored_note(n_paths, config):
@@ -323,3 +334,24 @@ def check_filter_run(ds, name, path=None, initial_error_deg=None):
         raise InvalidInputError(f"{where} has no sunlit epoch (the whole span is in the Earth's shadow): --filter "
                                 f"{name} has no Sun vector to follow; render a span with sunlight (another --start "
                                 "or a longer --duration)")
+
+
+# ---- output folders ------------------------------------------------------------------------------------------
+def check_output_folder(folder, option):
+    """Raise OutputError unless ``folder`` exists and takes new files, or can be created (its nearest existing
+    parent takes new files); nothing is created (a probe file is made and removed)."""
+    import tempfile
+    from simcore.errors import OutputError
+    path = os.path.abspath(folder)
+    existing = path
+    while not os.path.exists(existing):
+        existing = os.path.dirname(existing)
+    if not os.path.isdir(existing):
+        raise OutputError(f"cannot create the folder {folder} ({existing} is a file); choose another {option}")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".sunsim-probe-", dir=existing)
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+        raise OutputError(f"cannot create the folder {folder} ({existing}: {why}); choose another {option}") from None
+    os.close(fd)
+    os.remove(probe)
