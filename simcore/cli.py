@@ -1,5 +1,4 @@
 """The ``sunsim`` command line."""
-import argparse
 import json
 import os
 import sys

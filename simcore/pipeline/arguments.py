@@ -146,7 +146,8 @@ def _spectral_check(args):
 
 
 _CHECKS = {"run": _run, "summary": _spin_rate, "view": _view, "estimate": _estimate, "sweep": _sweep,
-           "attitude-study": _attitude_study, "earth-study": _earth_study, "reproduce": _reproduce, "coverage": _coverage,
+           "attitude-study": _attitude_study, "earth-study": _earth_study, "reproduce": _reproduce,
+           "coverage": _coverage,
            "response": _seed, "spectral-check": _spectral_check}
 
 

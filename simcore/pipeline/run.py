@@ -16,7 +16,6 @@ import hashlib
 import json
 import os
 from pathlib import Path
-import platform
 import shlex
 import sys
 from dataclasses import dataclass
@@ -45,7 +44,8 @@ from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
 from simcore.pipeline.preflight import (REFLECTED_SAMPLES, attitude_times_note, check_map, check_numbers,
                                        check_variant, check_wave_resources, reflected_ignored_note, tle_age_note)
-from simcore.pipeline.runfile import add_checksums, size_bound, verify_checksums, writer as _writer
+from simcore.pipeline.runfile import (add_checksums, git_commit as _git_commit, size_bound, verify_checksums,
+                                      software_versions as _versions, writer as _writer)
 from simcore.pipeline.store import (ChunkStore, atomic_write, check_room, check_writable, chunk_ranges, is_disk_full,
                                     missing_ranges, spec_digest)
 from simcore.environment.geometry import DEFAULT_START, compute_geometry, orbital_period_s
@@ -548,32 +548,10 @@ def plain_check_epochs(seed, n):
     return np.random.default_rng([int(seed), 0x9E3779B9]).random(n) < PLAIN_CHECK_SHARE
 
 
-def _versions():
-    drjit, mitsuba = _llvm.import_drjit(), _llvm.import_mitsuba()
-    import sgp4
-    import erfa
-    return {"sunsim": __version__, "python": platform.python_version(), "numpy": np.__version__,
-            "mitsuba": mitsuba.__version__, "drjit": drjit.__version__, "sgp4": sgp4.__version__,
-            "pyerfa": erfa.__version__}
-
-
 def _tle_age_days(study):
     """Return the days from the TLE epoch to the run's first epoch (negative: before the epoch)."""
     sat = study.orbit.satrec
     return (study.epochs.jd1[0] - sat.jdsatepoch) + (study.epochs.jd2[0] - sat.jdsatepochF)
-
-
-@functools.lru_cache(maxsize=1)
-def _git_commit():
-    """Return the git commit sunsim runs from (with '-dirty' for local changes), or '' outside a checkout."""
-    import subprocess
-    here = os.path.dirname(os.path.abspath(__file__))
-    try:
-        out = subprocess.run(["git", "-C", here, "describe", "--always", "--dirty", "--abbrev=12"],
-                             capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return ""
-    return out.stdout.strip() if out.returncode == 0 else ""
 
 
 def _with_reflected(data):

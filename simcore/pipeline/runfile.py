@@ -8,8 +8,10 @@ written before the checksums existed are accepted with a note (nothing to compar
 :func:`writer` names who writes a run's chunks (sunsim version, renderer variant): a partial run is resumed only
 by the same writer (:class:`simcore.pipeline.store.ChunkStore`).
 """
+import functools
 import hashlib
 import json
+import os
 import sys
 
 import numpy as np
@@ -73,3 +75,28 @@ def size_bound(ds):
 def writer(study):
     """Return who writes ``study``'s chunks: {"sunsim": version, "variant": the Mitsuba variant it renders with}."""
     return {"sunsim": __version__, "variant": getattr(study, "variant", None)}
+
+
+def software_versions():
+    """Return the versions of sunsim and of the libraries that decide a run's numbers."""
+    from simcore import _llvm
+    drjit, mitsuba = _llvm.import_drjit(), _llvm.import_mitsuba()
+    import platform
+    import sgp4
+    import erfa
+    return {"sunsim": __version__, "python": platform.python_version(), "numpy": np.__version__,
+            "mitsuba": mitsuba.__version__, "drjit": drjit.__version__, "sgp4": sgp4.__version__,
+            "pyerfa": erfa.__version__}
+
+
+@functools.lru_cache(maxsize=1)
+def git_commit():
+    """Return the git commit sunsim runs from (with '-dirty' for local changes), or '' outside a checkout."""
+    import subprocess
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        out = subprocess.run(["git", "-C", here, "describe", "--always", "--dirty", "--abbrev=12"],
+                             capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return out.stdout.strip() if out.returncode == 0 else ""
