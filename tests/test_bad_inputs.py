@@ -288,6 +288,7 @@ BAD = [
     (["response", "tilt20_fov70", "--step", "nan"], "--step"),
     (["response", "tilt20_fov70", "--samples", "3"], "--samples"),
     (["response", "tilt20_fov70", "--seed", "-1"], "--seed must be a whole number"),
+    (["response", "tilt20_fov70", "--samples", "4000000000000"], "--samples 4000000000000 traces up to"),
     (["response", "tilt20_fov70", "--plot", "x.txt"], "give a .png or .pdf file name"),
     (["response", "tilt20_fov70", "--map-step", "0"], "--map-step"),
     (["response", "tilt20_fov70", "--variant", "cuda_rgb"], "--variant"),
@@ -299,6 +300,7 @@ BAD = [
     (["spectral-check", "--seed", "-1"], "--seed must be a whole number"),
     (["spectral-check", "--seed", str(2 ** 64 - 1)], "--seed (+1 for each further --diode)"),
     (["spectral-check", "--diode", "BPW3"], "BPW3"),
+    (["spectral-check", "--samples", "100000000000"], "--samples 100000000000 traces up to"),
     # ---- summary
     (["summary", "--duration", "nan"], "--duration"),
     (["summary", "--step", "0"], "--step must be a positive number"),

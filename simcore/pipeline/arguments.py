@@ -133,8 +133,12 @@ def _coverage(args):
         preflight.check_output_folder(args.plot_dir, "--plot-dir")
 
 
-def _seed(args):
+def _response(args):
+    import math
     preflight.check_seed(args.seed)
+    if math.isfinite(args.step) and args.step > 0 and args.samples > 0:     # else: check_request says why
+        # one wavefront: every angle of the sweep (90 deg / step + 1) of one diode at a time
+        preflight.check_wave_resources("--samples", args.samples, int(90 / args.step) + 1, 1)
 
 
 def _spectral_check(args):
@@ -143,12 +147,15 @@ def _spectral_check(args):
     preflight.check_seed(args.seed + len(args.diode) - 1, "--seed (+1 for each further --diode)")
     for diode in args.diode:
         band_curve(diode)
+    if args.samples > 0:
+        from simcore.render.spectral_check import NORMALS_LOCAL
+        preflight.check_wave_resources("--samples", args.samples, args.epochs, len(NORMALS_LOCAL))
 
 
 _CHECKS = {"run": _run, "summary": _spin_rate, "view": _view, "estimate": _estimate, "sweep": _sweep,
            "attitude-study": _attitude_study, "earth-study": _earth_study, "reproduce": _reproduce,
            "coverage": _coverage,
-           "response": _seed, "spectral-check": _spectral_check}
+           "response": _response, "spectral-check": _spectral_check}
 
 
 def check_arguments(args):
