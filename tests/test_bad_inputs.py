@@ -30,9 +30,13 @@ def runs(tmp_path_factory):
     d = tmp_path_factory.mktemp("runs")
     cwd = os.getcwd()
     os.chdir(d)
+    # one row a second, written in milliseconds: read as seconds, 1000 s apart (a warning, stored)
+    (d / "att_ms.csv").write_text("t_s,qw,qx,qy,qz\n" + "\n".join(f"{1000 * i},1,0,0,0" for i in range(10)) + "\n")
     try:
-        assert main(["run"] + TINY + ["-o", "good.nc"]) == 0
-        assert main(["run"] + START + ["--duration", "1", "--samples", "256", "256", "-o", "one.nc"]) == 0
+        # --reflected-samples on the all-black tilt20_fov70: ignored, a warning (stored)
+        assert main(["run"] + TINY + ["--reflected-samples", "1024", "-o", "good.nc"]) == 0
+        assert main(["run"] + START + ["--duration", "1", "--samples", "256", "256", "--attitude", "att_ms.csv",
+                     "-o", "one.nc"]) == 0
         assert main(["run", "--duration", "20", "--samples", "256", "256", "-o", "dark.nc"]) == 0
     finally:
         os.chdir(cwd)
@@ -371,30 +375,28 @@ def test_a_checksum_covers_every_numeric_variable(runs):
 
 
 # ---- accepted with a warning, printed and stored (issue item 5) -----------------------------------------------
-def test_attitude_times_in_milliseconds_are_a_stored_warning(runs, tmp_path, capsys, monkeypatch):
+def test_attitude_times_in_milliseconds_are_a_stored_warning(runs):
     import xarray as xr
-    monkeypatch.chdir(tmp_path)
-    # one row a second, written in milliseconds: read as seconds, 1000 s apart
-    rows = "\n".join(f"{1000 * i},1,0,0,0" for i in range(10))
-    (tmp_path / "att_ms.csv").write_text("t_s,qw,qx,qy,qz\n" + rows + "\n")
-    assert main(["run"] + TINY + ["--attitude", "att_ms.csv", "-o", "r.nc"]) == 0
-    err = capsys.readouterr().err
-    assert "warning: the attitude file att_ms.csv has rows 1000 s apart" in err and "divide them by 1000" in err
-    assert "divide them by 1000" in xr.load_dataset("r.nc").attrs["warnings"]
-    # rows 1 s apart: no warning
+    warnings = xr.load_dataset(runs / "one.nc").attrs["warnings"]
+    assert "the attitude file att_ms.csv has rows 1000 s apart" in warnings and "divide them by 1000" in warnings
     from simcore.pipeline.preflight import attitude_times_note
-    assert attitude_times_note(np.arange(10.0), "a.csv") is None
-    assert attitude_times_note(np.arange(10.0) * 100.5, "a.csv") is None      # slow but not whole: seconds
+    assert attitude_times_note(np.arange(10.0), "a.csv") is None                # rows 1 s apart: seconds
+    assert attitude_times_note(np.arange(10.0) * 100.5, "a.csv") is None        # slow but not whole: seconds
     assert attitude_times_note(1.467e12 + np.arange(10.0), "a.csv") is not None  # Unix time in ms
 
 
-def test_reflected_samples_on_an_all_black_layout_are_a_stored_warning(tmp_path, capsys, monkeypatch):
+def test_reflected_samples_on_an_all_black_layout_are_a_stored_warning(runs):
     import xarray as xr
+    warnings = xr.load_dataset(runs / "good.nc").attrs["warnings"]
+    assert "--reflected-samples 1024 is ignored: every surface of tilt20_fov70 is black" in warnings
+
+
+def test_the_warnings_are_printed_too(tmp_path, capsys, monkeypatch):
+    from simcore.pipeline import run
+    monkeypatch.setattr(run.PreparedRun, "render_chunk", lambda *a: (_ for _ in ()).throw(KeyboardInterrupt))
     monkeypatch.chdir(tmp_path)
-    assert main(["run"] + TINY + ["--reflected-samples", "1024", "-o", "r.nc"]) == 0
-    err = capsys.readouterr().err
-    assert "--reflected-samples 1024 is ignored: every surface of tilt20_fov70 is black" in err
-    assert "is ignored" in xr.load_dataset("r.nc").attrs["warnings"]
+    assert main(["run"] + TINY + ["--reflected-samples", "1024", "-o", "r.nc"]) == 130      # stopped at the render
+    assert "warning: --reflected-samples 1024 is ignored" in capsys.readouterr().err
 
 
 def test_the_reflected_bound_is_the_measured_memory():
