@@ -849,8 +849,8 @@ class SatelliteConfig:
         parts = tuple(_build_part(i, t, base_dir, where) for i, t in enumerate(part_tables))
         diodes = tuple(_build_diode(i, t, body, mount, parts) for i, t in enumerate(tables))
         _validate_mounts(diodes, body, mount)
-        check_scene(parts, part_tables, diodes, body, where)      # names, hinges, parts in the body
         _validate_parts(parts, diodes)
+        check_scene(parts, part_tables, diodes, body, where)      # names, hinges, parts in the body
         cfg = cls(name=str(data.get("name", "custom")), description=str(data.get("description", "")), body=body,
                   mount=mount, diodes=diodes, dead=np.zeros(len(diodes), bool), layout=layout, source=source,
                   parts=parts)

@@ -82,7 +82,7 @@ def check_scene(parts, part_tables, diodes, body, where):
         dup = _duplicate(names)
         if dup is not None:
             table = "[[diode]]" if kind == "diodes" else "[[part]]"
-            raise SceneError(f"{where}: two {kind} share the name {dup!r}; give each {table} its own name (names "
+            raise SceneError(f"{where}: two {kind} share a name ({dup!r}); give each {table} its own name (names "
                              "label the run file's columns and the pictures)")
     for part, table in zip(parts, part_tables):
         hinge = table.get("hinge") if isinstance(table, dict) else None
