@@ -252,6 +252,15 @@ def check_wave_resources(option, n_paths, n_epochs, n_diodes, memory_bytes=None)
                                 f"{memory / 2 ** 30:.3g} GiB available or Dr.Jit's 2^32 lanes: {most}")
 
 
+def check_run_resources(opts, n_epochs, n_diodes, reflected_traced=True):
+    """check_wave_resources of a run's fixed --samples (none with --accuracy: the renderer caps those) and, where the
+    reflected component is traced, of its --reflected-samples."""
+    waves = [] if opts.rel_se_direct else [("--samples DIRECT", opts.direct_samples),
+                                           ("--samples ALBEDO", opts.albedo_samples)]
+    for option, n in waves + ([("--reflected-samples", opts.reflected_samples)] if reflected_traced else []):
+        check_wave_resources(option, n, n_epochs, n_diodes)
+
+
 def check_reflected_resources(n_paths, n_epochs, n_diodes, memory_bytes=None):
     """check_wave_resources of --reflected-samples."""
     check_wave_resources("--reflected-samples", n_paths, n_epochs, n_diodes, memory_bytes)

@@ -43,7 +43,7 @@ from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
 from simcore.pipeline.preflight import (REFLECTED_SAMPLES, attitude_times_note, check_map, check_numbers,
-                                       check_variant, check_wave_resources, reflected_ignored_note, tle_age_note)
+                                       check_run_resources, check_variant, reflected_ignored_note, tle_age_note)
 from simcore.pipeline.runfile import (add_checksums, git_commit as _git_commit, size_bound, verify_checksums,
                                       software_versions as _versions, writer as _writer)
 from simcore.pipeline.store import (ChunkStore, atomic_write, check_room, check_writable, chunk_ranges, is_disk_full,
@@ -752,10 +752,7 @@ def prepare(opts):
                                 f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
     study.variant = variant
     notes = [tle_age_note(study.orbit, study.epochs), reflected_ignored_note(opts.reflected_samples, study.config)]
-    waves = [("--samples DIRECT", opts.direct_samples), ("--samples ALBEDO", opts.albedo_samples)]
-    for option, n in waves[:0 if opts.rel_se_direct else 2] + [("--reflected-samples", opts.reflected_samples)] * (
-            notes[1] is None):          # the reflected component traced: its wavefront too
-        check_wave_resources(option, n, len(study.epochs), study.config.n_diodes)
+    check_run_resources(opts, len(study.epochs), study.config.n_diodes, reflected_traced=notes[1] is None)
     if opts.attitude_file:
         notes.append(attitude_times_note(_attitude.Attitude.from_file(opts.attitude_file).t_s, opts.attitude_file))
     study.notes = [n for n in notes if n]
