@@ -33,6 +33,7 @@ from simcore.shapes.window import INDEX_RANGE, Window
 from simcore.errors import InvalidInputError
 from scenes.declared import ConfigError, body_none as _flag, diode_type, unit_normal
 from scenes.materials import DEFAULT as DEFAULT_MATERIAL, check_material
+from scenes.sanity import check_scene
 
 CONFIG_DIR = Path(__file__).resolve().parent
 MM = 1e-3
@@ -302,13 +303,9 @@ def _ray_distances(vertices, faces, origins, dirs):
 
 
 def _validate_parts(parts, diodes):
-    """Refuse two parts of one name, a diode buried in a (closed) part and a diode looking straight into one
+    """Refuse a diode buried in a (closed) part and a diode looking straight into one
     (its normal meets a part within 1 mm)."""
     import trimesh
-    names = [p.name for p in parts]
-    if len(set(names)) != len(names):
-        raise ConfigError(f"two parts share a name ({sorted(n for n in names if names.count(n) > 1)[0]!r}); "
-                          "give each [[part]] its own name")
     centres = np.array([d.position_body_m for d in diodes])
     normals = np.array([d.normal_body for d in diodes])
     for part in parts:
@@ -808,7 +805,7 @@ class SatelliteConfig:
                               f"({', '.join(list_configs())}) or an existing .toml path")
         try:
             data = tomllib.loads(path.read_text())
-        except tomllib.TOMLDecodeError as exc:
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{path}: not valid TOML ({exc})") from None
         data.setdefault("name", path.stem)
         return cls.from_dict(data, source=str(path), extra_flat_diodes=extra_flat_diodes, dead=dead)
@@ -854,6 +851,7 @@ class SatelliteConfig:
         diodes = tuple(_build_diode(i, t, body, mount, parts) for i, t in enumerate(tables))
         _validate_mounts(diodes, body, mount)
         _validate_parts(parts, diodes)
+        check_scene(parts, part_tables, diodes, body, where)      # names, hinges, parts in the body
         cfg = cls(name=str(data.get("name", "custom")), description=str(data.get("description", "")), body=body,
                   mount=mount, diodes=diodes, dead=np.zeros(len(diodes), bool), layout=layout, source=source,
                   parts=parts, diode_type=diode_type(data.get("diode_type"), where))

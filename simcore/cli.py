@@ -1,5 +1,4 @@
 """The ``sunsim`` command line."""
-import argparse
 import json
 import os
 import sys
@@ -9,6 +8,7 @@ import numpy as np
 from simcore._version import __version__
 from simcore.constants import E_SUN_W_M2
 from simcore.errors import InvalidInputError, UserError
+from simcore.pipeline.arguments import NotedGiven, OneLineParser
 
 DEFAULT_TLE_HELP = "TLE file (2- or 3-line; default: the shipped ESTCube-1 set, epoch 2016-07-27)"
 
@@ -40,7 +40,7 @@ def _add_orbit_options(p, ephemeris=False):
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="seconds to simulate (default: one orbital period, or the rest of an --attitude history)")
     p.add_argument("--step", type=float, default=1.0, metavar="S", help="seconds between epochs (default: %(default)s)")
-    p.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S",
+    p.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S", action=NotedGiven,
                    help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
 
 
@@ -102,7 +102,7 @@ def _add_render_options(p):
                    help="torque-free Euler dynamics instead of the constant tumble, starting at --spin-rate about "
                         "the body diagonal; INERTIA in kg m^2: 'IXX,IYY,IZZ' or 'IXX,IYY,IZZ,IXY,IXZ,IYZ'")
     p.add_argument("--accuracy", nargs=2, type=float, metavar=("DIRECT", "ALBEDO"), default=(0.002, 0.01),
-                   help="target relative standard errors of direct and albedo irradiance (default 0.002 0.01)")
+                   action=NotedGiven, help="target relative standard errors of direct and albedo irradiance (default 0.002 0.01)")
     p.add_argument("--samples", nargs=2, type=int, metavar=("DIRECT", "ALBEDO"),
                    help="fixed samples per diode-epoch instead of --accuracy (direct: a power of 4)")
     _add_reflected_samples(p)
@@ -288,28 +288,13 @@ def cmd_view(args):
     from simcore.environment.epochs import Epochs
     from simcore.pipeline.store import check_writable
     from simcore.radiometry import band
-    if args.config_pos and args.config and args.config_pos != args.config:
-        raise InvalidInputError(f"two configurations given ({args.config_pos} and --config {args.config}); give one")
-    config = args.config or args.config_pos or "tilt20_fov70"
-    if args.spp < 1:
-        raise InvalidInputError(f"--spp must be a positive number of samples per pixel, got {args.spp}")
+    config = args.config or args.config_pos or "tilt20_fov70"      # options checked: simcore.pipeline.arguments
     w, h = args.resolution
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise InvalidInputError(f"--resolution W H must be whole pixels from 1 to 16384, got {w} {h}")
-    if args.close_up and args.map is not None:
-        raise InvalidInputError("--map colours the Earth, which --close-up leaves out; drop one of them")
-    if args.output is not None and not args.output.lower().endswith(".png"):
-        raise InvalidInputError(f"-o {args.output}: the picture is a PNG; give a file name ending in .png")
     cfg = SatelliteConfig.load(config)
-    if args.clouds is None and args.cloud_scale_km is not None:
-        raise InvalidInputError("--cloud-scale-km sets the size of cloud weather, which needs --clouds SEED; "
-                                "add --clouds or drop --cloud-scale-km")
     if args.clouds is None:
         rmap = band.resolve_map(args.map or "toms2005")
     else:
         from simcore.environment.clouds import check_cloud_options
-        if args.close_up:
-            raise InvalidInputError("--clouds colours the Earth, which --close-up leaves out; drop one of them")
         check_cloud_options(args.map or "toms2005", args.clouds, args.cloud_scale_km)
         rmap = band.cloud_weather(args.map, args.cloud_scale_km).realise(args.clouds)
     Epochs.from_any(args.time)
@@ -367,8 +352,6 @@ def _mekf_filter(args):
     from simcore.sensor.magnetometer import magnetometer_spec
     gyro = gyro_spec(args.gyro or DEFAULT_GYRO).name                 # name checks before any work
     mag = magnetometer_spec(args.magnetometer or DEFAULT_MAGNETOMETER).name
-    if args.initial_error is not None and not 0 <= args.initial_error <= 180:
-        raise InvalidInputError(f"--initial-error must be an angle between 0 and 180 deg, got {args.initial_error}")
     ds = open_run(args.run)
     res = run_mekf(ds, args.run, gyro=gyro, magnetometer=mag, seed=args.seed, diode=args.diode,
                    onboard_albedo=not args.no_onboard_albedo, initial_error_deg=args.initial_error,
@@ -464,8 +447,6 @@ def cmd_estimate(args):
     from simcore.sensor.chain import DIODES
     if args.diode not in DIODES:
         raise InvalidInputError(f"--diode {args.diode} is unknown; use one of {', '.join(sorted(DIODES))}")
-    if not 0 <= args.seed < 2 ** 64:
-        raise InvalidInputError(f"--seed must be a whole number from 0 to 2^64-1, got {args.seed}")
     ds = open_run(args.run)
     from simcore.environment.eclipse import sunlit
     if not np.any(sunlit(ds["illumination"].values)):
@@ -734,7 +715,7 @@ def _add_spectral_check_parser(sub):
 
 
 def build_parser():
-    p = argparse.ArgumentParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
+    p = OneLineParser(prog="sunsim", description="Ray-traced CubeSat coarse sun sensor simulator.")
     p.add_argument("--version", action="version", version=f"sunsim {__version__}")
     p.add_argument("--debug", action="store_true",
                    help="show the full traceback of a user error too (accepted anywhere on the line)")
@@ -774,7 +755,7 @@ def build_parser():
     v.add_argument("--satellite", metavar="NAME_OR_ID", help="satellite in a multi-satellite TLE file")
     v.add_argument("--start", default="2016-07-02T00:00:00Z",
                    help="the run's start, where its tumble begins aligned with GCRS (default: %(default)s)")
-    v.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S",
+    v.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S", action=NotedGiven,
                    help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
     v.add_argument("--attitude", metavar="CSV", help="attitude history t_s,qw,qx,qy,qz whose first row is --start "
                                                       "(overrides the tumble), as for `run`")
@@ -923,7 +904,8 @@ def main(argv=None):
     if args.command is None:
         args = parser.parse_args(["run"] + argv)
     try:
-        return args.func(args)
+        from simcore.pipeline.arguments import check_arguments
+        return args.func(check_arguments(args))          # every command's options checked before any work
     except UserError as exc:
         if debug:
             raise

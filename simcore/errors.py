@@ -31,3 +31,11 @@ class OutputFolderMissingError(UserError, FileNotFoundError):
 
 class OutputIsAFolderError(UserError, IsADirectoryError):
     """An output path names a folder."""
+
+
+class MissingExtraError(UserError, ImportError):
+    """An optional dependency (a pip extra) that a command needs is not installed."""
+
+
+class ClusterError(UserError, RuntimeError):
+    """The Dask cluster cannot do the work: no workers, an unreachable scheduler, a worker that keeps dying."""

@@ -295,7 +295,7 @@ def named_map(name):
         try:
             with np.load(name) as z:
                 arrays = {k: z[k] for k in z.files}
-        except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise InvalidInputError(f"{name} is not a readable .npz map ({exc}); save the map as "
                                     "numpy.savez(path, reflectivity=..., lat_deg=..., lon_deg=...)") from None
         if "reflectivity" not in arrays:

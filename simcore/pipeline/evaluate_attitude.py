@@ -44,6 +44,7 @@ with ``initial_error_deg``, from the true attitude rotated by that angle about a
 import numpy as np
 
 from simcore.errors import InvalidInputError
+from simcore.pipeline.preflight import check_filter_run
 
 from simcore.environment.eclipse import sunlit as eclipse_sunlit
 from estimators.attitude import (MEKF, attitude_error_body, dcm_to_quat, nees, quat_mul, quat_to_dcm, rotvec_to_quat,
@@ -105,6 +106,7 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
     ``summary`` (JSON-able). ``thermal_compensation``: the gyro's bias
     temperature effect is compensated on board down to :data:`simcore.sensor.gyro.THERMAL_COMPENSATION_RESIDUAL`.
     """
+    check_filter_run(ds, "mekf", path, initial_error_deg)       # one line for a run that cannot feed it
     from estimators.advanced import model_albedo_direction_variance, model_albedo_estimate
     from estimators.sun_vector import sun_albedo_sun_estimate
     from simcore.pipeline.evaluate import measure

@@ -36,6 +36,7 @@ from estimators.sunline import perpendicular_rate, rate_from_sun_vectors, run_su
 from simcore.environment import eclipse
 from simcore.environment.attitude import quat_conjugate, quat_multiply
 from simcore.errors import InvalidInputError
+from simcore.pipeline.preflight import check_filter_run
 from simcore.constants import E_SUN_W_M2
 from simcore.sensor.chain import DIODES, SensorChain
 from simcore.sensor.errors import (apply_errors, basilisk_response, check_faults, misalignment_rotations,
@@ -182,6 +183,7 @@ def filter_run(ds, kind, *, diode="BPW34FS", errors=None, faults=(), noise=False
     ``q_rate``, ``q_sun``: the process noise (:func:`estimators.sunline.process_noise`). Start and eclipse: the module docstring. ``return_series=True`` also returns a dict of the
     time series (estimates, rejections, true values).
     """
+    check_filter_run(ds, kind)       # one line for a run that cannot feed it
     filt = FILTER_KINDS.get(kind, kind)
     if filt not in ("ekf", "ukf"):
         raise InvalidInputError(f"unknown filter {kind!r}; use one of {', '.join(FILTER_KINDS)}")

@@ -10,6 +10,7 @@ rejected command leaves nothing behind. What is allowed but questionable
 file's attributes.
 """
 import math
+import os
 
 import numpy as np
 
@@ -58,8 +59,9 @@ def check_numbers(opts):
         if opts.step_s > opts.duration_s:
             raise InvalidInputError(f"--step ({opts.step_s:g} s) is longer than --duration ({opts.duration_s:g} s); "
                                     "give a step at most as long as the span")
-    if not math.isfinite(opts.spin_rate_deg_s):
-        raise InvalidInputError(f"--spin-rate must be a finite number of deg/s, got {opts.spin_rate_deg_s}")
+    check_spin_rate(opts.spin_rate_deg_s)
+    if getattr(opts, "attitude_file", None) and getattr(opts, "dynamics", None):
+        raise InvalidInputError("--attitude and --dynamics both set the attitude; give one of them")
     for value, which in ((opts.rel_se_direct, "DIRECT"), (opts.rel_se_albedo, "ALBEDO")):
         if value is not None and not (math.isfinite(value) and 0 < value < 1):
             raise InvalidInputError(f"--accuracy {which} must be a relative standard error between 0 and 1 "
@@ -81,8 +83,7 @@ def check_numbers(opts):
     check_band(opts.reflectivity)
     check_clouds(opts)
     if getattr(opts, "glint", None) is not None:
-        from simcore.radiometry.glint import check_wind
-        check_wind(opts.glint)
+        check_glint(opts.glint)
 
 
 def check_reflected_samples(n):
@@ -167,3 +168,217 @@ def map_for_diodes(map_name, config):
                                 "broadband map (ceres2018-all, toms2005)")
     return f"{map_name}:{declared}"
 
+# ---- seeds, rates, winds: the limits every command shares --------------------------------------------------------
+# Cox & Munk's fit (1954) spans winds of about 1-14 m/s; above ~30 m/s (hurricane force, Beaufort 11-12) the sea is
+# foam and spray, which no mean-square-slope model describes: such a --glint is a typo or a unit (km/h, knots) mix-up.
+WIND_MAX_M_S = 30.0
+# The fastest spin a CubeSat is designed for: ESTCube-1 was to spin up to one turn a second (360 deg/s) to deploy
+# its electric-sail tether (Slavinskis et al. 2015). Faster rates are a unit mistake (rpm, rad/s given as deg/s...).
+SPIN_MAX_DEG_S = 360.0
+
+
+def check_seed(value, option="--seed"):
+    """Raise InvalidInputError unless ``value`` is a whole number 0 .. 2^64-1 (numpy's and the renderer's seeds)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= int(value) <= MAX_SEED:
+        raise InvalidInputError(f"{option} must be a whole number from 0 to 2^64-1 ({MAX_SEED}), got {value}")
+
+
+def check_seeds(values, option):
+    """check_seed for each of ``values``, and at least one of them."""
+    if values is not None and len(values) == 0:
+        raise InvalidInputError(f"{option} needs at least one seed")
+    for v in values or ():
+        check_seed(v, option)
+
+
+def check_glint(wind_m_s, option="--glint"):
+    """Return the wind speed (m/s) of a sea glint option, or raise InvalidInputError: negative, not finite, or above
+    WIND_MAX_M_S, where Cox & Munk's model of the sea surface no longer applies."""
+    from simcore.radiometry.glint import check_wind
+    if option != "--glint":
+        try:
+            ok = math.isfinite(float(wind_m_s)) and float(wind_m_s) >= 0
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InvalidInputError(f"{option} must be a finite wind speed >= 0 m/s (e.g. 7), got {wind_m_s}")
+    w = check_wind(wind_m_s)
+    if w > WIND_MAX_M_S:
+        raise InvalidInputError(f"{option} {wind_m_s:g} m/s is above {WIND_MAX_M_S:g} m/s (hurricane force: the sea is "
+                                "foam and spray, outside Cox & Munk's fit of about 1-14 m/s); give the wind at 12.5 m "
+                                "in m/s, e.g. 7")
+    return w
+
+
+def check_spin_rate(rate_deg_s, option="--spin-rate"):
+    """Raise InvalidInputError unless ``rate_deg_s`` is a finite rate of at most SPIN_MAX_DEG_S in magnitude."""
+    if not math.isfinite(rate_deg_s):
+        raise InvalidInputError(f"{option} must be a finite number of deg/s, got {rate_deg_s}")
+    if abs(rate_deg_s) > SPIN_MAX_DEG_S:
+        raise InvalidInputError(f"{option} {rate_deg_s:g} deg/s is faster than {SPIN_MAX_DEG_S:g} deg/s (one turn a "
+                                "second, the fastest spin a CubeSat is built for); the rate is in deg/s")
+
+
+# ---- resources: what the machine can hold, checked before Dr.Jit is asked ------------------------------------
+# Dr.Jit sizes its arrays with 32-bit unsigned integers: a wavefront of 2^32 lanes or more wraps around and crashes
+# the process (SIGSEGV; seen with `sunsim view --spp 9000` at 960 x 540: 4.67e9 lanes).
+MAX_LANES = 2 ** 32 - 1
+# Memory of one lane of the reflected-light wavefront, measured: tilt20_fov70 ... cubesat3u_panels, 2 epochs x 6
+# diodes x 4e6 paths (4.8e7 lanes) peaked at 2.36 GB against 0.38 GB at 256 paths (/usr/bin/time -v): 41 bytes a
+# lane; 64 with room for Dr.Jit's pools.
+REFLECTED_BYTES_PER_LANE = 64
+# epochs gathered into one reflected wavefront at most (simcore.render.irradiance.Renderer.render's batch_epochs)
+REFLECTED_BATCH_EPOCHS = 64
+
+
+def available_memory_bytes():
+    """Return the memory this process may still use (MemAvailable of /proc/meminfo; else the physical memory)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+def check_view_size(width, height, spp):
+    """Raise InvalidInputError unless a picture of ``width`` x ``height`` pixels at ``spp`` samples per pixel fits
+    in one Dr.Jit wavefront (MAX_LANES)."""
+    lanes = int(width) * int(height) * int(spp)
+    if lanes > MAX_LANES:
+        most = MAX_LANES // (int(width) * int(height))
+        raise InvalidInputError(f"--spp {spp} at {width} x {height} pixels asks for {lanes:.3g} samples in one render, "
+                                f"beyond Dr.Jit's limit of 2^32-1 ({MAX_LANES:.3g}): give --spp {most} or fewer at "
+                                "this --resolution, or a smaller --resolution")
+
+
+def check_wave_resources(option, n_paths, n_epochs, n_diodes, memory_bytes=None):
+    """Raise InvalidInputError unless a wavefront of ``n_paths`` per diode-epoch (``option``'s value; up to
+    REFLECTED_BATCH_EPOCHS epochs x ``n_diodes`` at once) fits in Dr.Jit's lanes and in the available memory."""
+    tasks = min(int(n_epochs), REFLECTED_BATCH_EPOCHS) * int(n_diodes)
+    lanes = tasks * int(n_paths)
+    memory = available_memory_bytes() if memory_bytes is None else memory_bytes
+    need = lanes * REFLECTED_BYTES_PER_LANE
+    if lanes > MAX_LANES or need > memory:
+        m = math.isqrt(max(min(MAX_LANES, memory // REFLECTED_BYTES_PER_LANE) // tasks, 0) // 4)
+        most = f"at most {4 * m * m} here" if m >= 8 else f"this layout cannot afford even the smallest, {MIN_SAMPLES}"
+        raise InvalidInputError(f"{option} {n_paths} traces up to {lanes:.3g} paths at once ({tasks // n_diodes} "
+                                f"epochs x {n_diodes} diodes x {n_paths}), ~{need / 2 ** 30:.3g} GiB at "
+                                f"{REFLECTED_BYTES_PER_LANE} bytes a path, beyond this machine's "
+                                f"{memory / 2 ** 30:.3g} GiB available or Dr.Jit's 2^32 lanes: {most}")
+
+
+def check_run_resources(opts, n_epochs, n_diodes, reflected_traced=True):
+    """check_wave_resources of a run's fixed --samples (none with --accuracy: the renderer caps those) and, where the
+    reflected component is traced, of its --reflected-samples."""
+    waves = [] if opts.rel_se_direct else [("--samples DIRECT", opts.direct_samples),
+                                           ("--samples ALBEDO", opts.albedo_samples)]
+    for option, n in waves + ([("--reflected-samples", opts.reflected_samples)] if reflected_traced else []):
+        check_wave_resources(option, n, n_epochs, n_diodes)
+
+
+def check_reflected_resources(n_paths, n_epochs, n_diodes, memory_bytes=None):
+    """check_wave_resources of --reflected-samples."""
+    check_wave_resources("--reflected-samples", n_paths, n_epochs, n_diodes, memory_bytes)
+
+
+def reflected_ignored_note(n_paths, config):
+    """Return a warning (str) when --reflected-samples is set on a layout whose surfaces are all black (nothing
+    reflects, so nothing is path traced), else None."""
+    from scenes.materials import is_black
+    if n_paths == REFLECTED_SAMPLES:
+        return None
+    surfaces = [config.body.material, config.mount.material] + [p.material for p in config.parts]
+    if all(is_black(m) for m in surfaces):
+        return (f"--reflected-samples {n_paths} is ignored: every surface of {config.name} is black, so nothing "
+                "reflects and no path is traced")
+    return None
+
+
+# ---- attitude files ---------------------------------------------------------------------------------------------
+# Rows this far apart (median, "seconds") on whole numbers look like milliseconds read as seconds: attitude
+# telemetry and simulations are sampled at 0.1-10 s; 100 s between attitude samples cannot follow any tumble.
+ATTITUDE_MS_STEP_S = 100.0
+# Times this large are Unix times in milliseconds (Unix time in seconds reaches 1e11 in the year 5138).
+ATTITUDE_MS_ABSOLUTE = 1e11
+
+
+def attitude_times_note(t_s, path):
+    """Return a warning (str) when an attitude file's times look like milliseconds although the column is
+    t_s (seconds), else None."""
+    t = np.asarray(t_s, dtype=float)
+    if len(t) < 2:
+        return None
+    step = float(np.median(np.diff(t)))
+    whole = bool(np.all(t == np.round(t)))
+    if (step >= ATTITUDE_MS_STEP_S and whole) or float(np.max(np.abs(t))) >= ATTITUDE_MS_ABSOLUTE:
+        return (f"the attitude file {path} has rows {step:g} s apart (median) on whole numbers, as milliseconds "
+                f"would be: its t_s column is read as seconds; if the times are in ms, divide them by 1000")
+    return None
+
+
+# ---- dask --------------------------------------------------------------------------------------------------------
+def require_dask(command):
+    """Raise MissingExtraError unless Dask's distributed scheduler can be imported."""
+    from simcore.errors import MissingExtraError
+    try:
+        import dask  # noqa: F401
+        import distributed  # noqa: F401
+    except ImportError as exc:
+        raise MissingExtraError(f"sunsim {command} runs on Dask, which is not installed ({exc.name or 'dask'} is "
+                                "missing): pip install 'sunsim[sweep]'") from None
+
+
+def check_workers(workers, scheduler):
+    """Raise InvalidInputError unless a local cluster of ``workers`` can be started (no ``scheduler`` given)."""
+    if scheduler:
+        return
+    most = 4 * (os.cpu_count() or 1)
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or not 1 <= workers <= most:
+        raise InvalidInputError(f"--workers must be a whole number from 1 to {most} (4 per CPU core here), got "
+                                f"{workers}; or give --scheduler ADDRESS of a running Dask cluster")
+
+
+# ---- run files given to the estimators -----------------------------------------------------------------------
+def check_filter_run(ds, name, path=None, initial_error_deg=None):
+    """Raise InvalidInputError unless run Dataset ``ds`` can feed filter ``name`` ('mekf', 'sunline-ekf', ...): at
+    least two epochs (a filter propagates from one to the next) and, to start from a Sun vector, a sunlit one."""
+    from simcore.environment.eclipse import sunlit
+    where = path or "the run"
+    n = int(ds.sizes["time"])
+    if n < 2:
+        raise InvalidInputError(f"{where} holds {n} epoch: --filter {name} propagates from epoch to epoch and needs "
+                                "at least 2; render a longer --duration (or use the estimators without --filter)")
+    if np.any(sunlit(ds["illumination"].values)):
+        return
+    if name == "mekf" and initial_error_deg is None:
+        raise InvalidInputError(f"{where} has no sunlit epoch (the whole span is in the Earth's shadow): the MEKF "
+                                "starts by TRIAD from the Sun vector; give --initial-error DEG to start from a "
+                                "perturbed truth, or a run with sunlight (another --start or a longer --duration)")
+    if name != "mekf":
+        raise InvalidInputError(f"{where} has no sunlit epoch (the whole span is in the Earth's shadow): --filter "
+                                f"{name} has no Sun vector to follow; render a span with sunlight (another --start "
+                                "or a longer --duration)")
+
+
+# ---- output folders ------------------------------------------------------------------------------------------
+def check_output_folder(folder, option):
+    """Raise OutputError unless ``folder`` exists and takes new files, or can be created (its nearest existing
+    parent takes new files); nothing is created (a probe file is made and removed)."""
+    import tempfile
+    from simcore.errors import OutputError
+    path = os.path.abspath(folder)
+    existing = path
+    while not os.path.exists(existing):
+        existing = os.path.dirname(existing)
+    if not os.path.isdir(existing):
+        raise OutputError(f"cannot create the folder {folder} ({existing} is a file); choose another {option}")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".sunsim-probe-", dir=existing)
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+        raise OutputError(f"cannot create the folder {folder} ({existing}: {why}); choose another {option}") from None
+    os.close(fd)
+    os.remove(probe)

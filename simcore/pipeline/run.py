@@ -16,7 +16,6 @@ import hashlib
 import json
 import os
 from pathlib import Path
-import platform
 import shlex
 import sys
 from dataclasses import dataclass
@@ -26,7 +25,6 @@ import xarray as xr
 
 from scenes.config import SatelliteConfig, body_side_normal
 from scenes.meshes import build_parts, build_satellite_mesh
-from simcore.environment.orbit import Orbit
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
 from simcore.radiometry.glint import SunGlint, check_refine as glint_check_refine
 from simcore.shapes.aperture import CircularWell
@@ -39,13 +37,16 @@ from simcore._version import __version__
 from simcore.environment import attitude as _attitude
 from simcore.pipeline import check as _check
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M, TSI_W_M2
-from simcore.environment.epochs import Epochs
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.radiometry import band
 from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
-from simcore.pipeline.preflight import (REFLECTED_SAMPLES, check_map, check_numbers, check_variant, map_for_diodes,
+from simcore.pipeline.preflight import (REFLECTED_SAMPLES, attitude_times_note, check_map, check_numbers,
+                                       check_run_resources, check_variant, map_for_diodes, reflected_ignored_note,
                                        tle_age_note)
-from simcore.pipeline.store import ChunkStore, atomic_write, check_writable, chunk_ranges, missing_ranges, spec_digest
+from simcore.pipeline.runfile import (add_checksums, git_commit as _git_commit, size_bound, verify_checksums,
+                                      software_versions as _versions, writer as _writer)
+from simcore.pipeline.store import (ChunkStore, atomic_write, check_room, check_writable, chunk_ranges, is_disk_full,
+                                    missing_ranges, spec_digest)
 from simcore.environment.geometry import compute_geometry, orbital_period_s
 from simcore.pipeline import schedule as _schedule
 from simcore.pipeline.schedule import study_geometry  # noqa: F401 (its old home: callers import it from here)
@@ -536,34 +537,12 @@ def plain_check_epochs(seed, n):
     return np.random.default_rng([int(seed), 0x9E3779B9]).random(n) < PLAIN_CHECK_SHARE
 
 
-def _versions():
-    drjit, mitsuba = _llvm.import_drjit(), _llvm.import_mitsuba()
-    import sgp4
-    import erfa
-    return {"sunsim": __version__, "python": platform.python_version(), "numpy": np.__version__,
-            "mitsuba": mitsuba.__version__, "drjit": drjit.__version__, "sgp4": sgp4.__version__,
-            "pyerfa": erfa.__version__}
-
-
 def _tle_age_days(study):
     """Return the days from the TLE epoch to the run's first epoch (negative: before the epoch; NaN without a TLE)."""
     if not hasattr(study.orbit, "satrec"):
         return float("nan")
     sat = study.orbit.satrec
     return (study.epochs.jd1[0] - sat.jdsatepoch) + (study.epochs.jd2[0] - sat.jdsatepochF)
-
-
-@functools.lru_cache(maxsize=1)
-def _git_commit():
-    """Return the git commit sunsim runs from (with '-dirty' for local changes), or '' outside a checkout."""
-    import subprocess
-    here = os.path.dirname(os.path.abspath(__file__))
-    try:
-        out = subprocess.run(["git", "-C", here, "describe", "--always", "--dirty", "--abbrev=12"],
-                             capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return ""
-    return out.stdout.strip() if out.returncode == 0 else ""
 
 
 def _with_reflected(data):
@@ -765,8 +744,11 @@ def prepare(opts):
         raise InvalidInputError(f"all {study.config.n_diodes} diodes of {study.config.name} are dead (--dead "
                                 f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
     study.variant = variant
-    study.notes = ([n for n in (tle_age_note(study.orbit, study.epochs),) if n] + list(study.plan.notes)
-                   + list(study.config.notes))
+    notes = [tle_age_note(study.orbit, study.epochs), reflected_ignored_note(opts.reflected_samples, study.config)]
+    check_run_resources(opts, len(study.epochs), study.config.n_diodes, reflected_traced=notes[1] is None)
+    if opts.attitude_file and _schedule.relative_times_csv(opts.attitude_file):
+        notes.append(attitude_times_note(_attitude.Attitude.from_file(opts.attitude_file).t_s, opts.attitude_file))
+    study.notes = [n for n in notes if n] + list(study.plan.notes) + list(study.config.notes)
     return study
 
 
@@ -789,7 +771,7 @@ def execute(opts, *, progress=None, log=None):
     finished = _finished(opts, log)
     if finished is not None:
         return finished
-    store = ChunkStore(opts.output, opts.spec()).open()
+    store = ChunkStore(opts.output, opts.spec(), writer=_writer(study)).open()
     try:
         # Another process may have finished this output while we waited for its lock.
         finished = _finished(opts, log)
@@ -834,6 +816,18 @@ def _render_and_write(study, store, progress, log):
     from tqdm import tqdm
     bar = tqdm(total=n, initial=sum(b - a for a, b in done), unit="epoch",
                disable=(not sys.stderr.isatty()) if progress is None else not progress, desc="rendering")
+    try:
+        return _write_chunks_and_file(study, store, todo, bar, n)
+    except OSError as exc:
+        if is_disk_full(exc, store.folder):
+            covered = sum(b - a for a, b in store.done()) == n
+            raise store.disk_full(exc, "writing the final file" if covered else "writing a chunk", n) from None
+        raise
+
+
+def _write_chunks_and_file(study, store, todo, bar, n):
+    """Render and store the chunks ``todo``, then write the run file from all of them; return (path, ds, report)."""
+    opts = study.opts
     pending = None          # the chunk being written by the worker thread while the next one renders
     try:
         for start, stop in todo:
@@ -853,7 +847,8 @@ def _render_and_write(study, store, progress, log):
     ds, report = build_dataset(study, data, variant)
 
     def write(tmp):
-        ds.to_netcdf(tmp, engine="h5netcdf")
+        add_checksums(ds).to_netcdf(tmp, engine="h5netcdf")
+    check_room(store.folder, size_bound(ds))
     # The temporary file lies in the partial folder: a crash here leaves it where the resume cleans up.
     atomic_write(opts.output, write, tmp_dir=store.folder)
     store.remove()
@@ -880,7 +875,7 @@ def open_run(path):
     if ds.attrs.get("title") != "sunsim diode irradiance run" or missing:
         raise InvalidInputError(f"{path} is not a sunsim run file (missing {', '.join(missing) or 'its sunsim title'}); "
                          "give a file written by 'sunsim run'")
-    return ds
+    return verify_checksums(ds, path)
 
 
 def check_run(ds):
@@ -980,7 +975,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     new.attrs["analytic_recomputed_with"] = json.dumps(_versions(), sort_keys=True)
 
     def write(tmp):
-        new.to_netcdf(tmp, engine="h5netcdf")
+        add_checksums(new).to_netcdf(tmp, engine="h5netcdf")
     ds.close()
     atomic_write(path, write)
     return report

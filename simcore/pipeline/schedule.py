@@ -109,6 +109,17 @@ def _history(opts):
                                  direction=getattr(opts, "attitude_direction", None))
 
 
+def relative_times_csv(path):
+    """Return True when ``path`` is sunsim's relative-time attitude CSV (header ``t_s,qw,qx,qy,qz``)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096).decode("utf-8", "replace")
+    except OSError:
+        return False
+    rows = [r for r in head.splitlines() if r.strip() and not r.lstrip().startswith("#")]
+    return bool(rows) and rows[0].replace(" ", "").lower().startswith("t_s")
+
+
 def _explicit(opts):
     epochs, times_file = getattr(opts, "epochs", None), getattr(opts, "times_file", None)
     if epochs is not None and times_file:
@@ -135,14 +146,14 @@ def _regular(opts, start, duration):
 def plan(opts):
     """Return the :class:`RunPlan` of ``opts`` (module docstring); raise one line for the first mistake."""
     if opts.attitude_file and opts.dynamics:
-        raise ValueError("--attitude and --dynamics both set the attitude; give one of them")
+        raise InvalidInputError("--attitude and --dynamics both set the attitude; give one of them")
     orbit = study_orbit(opts)
     ephemeris = getattr(opts, "orbit_file", None) is not None
     explicit = _explicit(opts)
     history = _history(opts)
     notes, source = [], "regular"
     if history is not None and opts.dynamics:
-        raise ValueError("--attitude and --dynamics both set the attitude; give one of them")
+        raise InvalidInputError("--attitude and --dynamics both set the attitude; give one of them")
     if explicit is not None:
         epochs, source = explicit, "times"
     elif history is not None and opts.start is None and opts.duration_s is None:

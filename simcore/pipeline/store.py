@@ -31,6 +31,49 @@ import numpy as np
 
 from simcore.errors import InvalidInputError, OutputError, OutputFolderMissingError, OutputIsAFolderError
 
+# errno values of a file system that has no room left: no space (ENOSPC), the user's quota (EDQUOT)
+_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+class DiskFullError(OutputError):
+    """The output's file system filled up during a run: the finished chunks are kept, a rerun resumes."""
+
+
+def is_disk_full(exc, folder=None):
+    """Return True if ``exc`` says that the file system has no room left: an OSError of errno ENOSPC or EDQUOT,
+    or (HDF5 reports a failed write without the errno) an OSError while ``folder``'s file system has < 1 MiB free."""
+    if not isinstance(exc, OSError):
+        return False
+    if exc.errno in _FULL:
+        return True
+    if folder is None or exc.errno not in (None, 0, errno.EIO):
+        return False
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return False
+    return st.f_bavail * st.f_frsize < 1 << 20
+
+
+def check_room(folder, nbytes):
+    """Raise OSError(ENOSPC) if ``folder``'s file system has fewer than ``nbytes`` free: asked before an HDF5 file
+    is written, because HDF5 meeting a full disk mid-file leaves its library in a state that crashes at exit."""
+    st = os.statvfs(folder)
+    if st.f_bavail * st.f_frsize < nbytes:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def _bytes(folder):
+    """Return the size of the files in ``folder`` (bytes)."""
+    total = 0
+    for name in os.listdir(folder) if os.path.isdir(folder) else ():
+        try:
+            total += os.path.getsize(os.path.join(folder, name))
+        except OSError:
+            pass
+    return total
+
+
 _CHUNK = re.compile(r"^chunk_(\d{9})_(\d{9})\.npz$")
 
 
@@ -105,11 +148,14 @@ def check_writable(path):
 class ChunkStore:
     """Finished chunks of one run, kept beside its final output file."""
 
-    def __init__(self, final_path, spec):
+    def __init__(self, final_path, spec, writer=None):
         self.final_path = final_path
         self.folder = final_path + ".partial"
         self.spec = spec
         self.digest = spec_digest(spec)
+        # who writes the chunks ({"sunsim": version, "variant": the renderer's}): not part of the settings, but a
+        # resume must not mix chunks of two writers
+        self.writer = writer
 
     def open(self):
         """Create or reopen the partial folder and lock it; raise if another process holds it or it
@@ -120,15 +166,25 @@ class ChunkStore:
             self._clean_temporaries()
             spec_file = os.path.join(self.folder, "spec.json")
             if os.path.exists(spec_file):
-                with open(spec_file) as f:
-                    old = json.load(f)
+                try:
+                    with open(spec_file) as f:
+                        old = json.load(f)
+                except ValueError:          # cut short or overwritten: whose chunks these are is unknown
+                    old = {"digest": None}
+                    if self.done():
+                        raise InvalidInputError(f"{spec_file} is unreadable, so the chunks beside it cannot be "
+                                                "told apart from another run's; delete that folder (or choose "
+                                                "another --output) to start afresh") from None
+                if self.done():
+                    self._refuse_other_writer(old)
                 if old.get("digest") == self.digest:
                     return self
                 if self.done():
                     raise InvalidInputError(
                         f"{self.folder} holds a partial run made with different settings; resume it with its "
                         "original command, or delete that folder (or choose another --output) to start afresh")
-            payload = json.dumps({"digest": self.digest, "spec": self.spec}, sort_keys=True, indent=1, default=str)
+            payload = json.dumps({"digest": self.digest, "spec": self.spec, "writer": self.writer}, sort_keys=True,
+                                 indent=1, default=str)
 
             def write(tmp):
                 with open(tmp, "w") as f:
@@ -138,6 +194,30 @@ class ChunkStore:
             self.close()
             raise
         return self
+
+    def _refuse_other_writer(self, old):
+        """Raise InvalidInputError if the partial run's chunks were written by another sunsim version or renderer
+        variant (``old``: its spec.json): a resume would splice two programs' numbers into one file."""
+        theirs = dict(old.get("writer") or {})
+        theirs.setdefault("sunsim", (old.get("spec") or {}).get("sunsim_version"))
+        ours = dict(self.writer or {})
+        ours.setdefault("sunsim", self.spec.get("sunsim_version"))
+        for key, what in (("sunsim", "sunsim"), ("variant", "the renderer variant")):
+            if theirs.get(key) and ours.get(key) and theirs[key] != ours[key]:
+                raise InvalidInputError(
+                    f"{self.folder} holds a partial run whose chunks were written by {what} {theirs[key]} (this is "
+                    f"{ours[key]}); they cannot be mixed with this one's: finish it with {what} {theirs[key]}, or "
+                    "delete that folder (or choose another --output) to start afresh")
+
+    def disk_full(self, exc, doing, n_total):
+        """Return the one-line DiskFullError of a full disk met while ``doing`` (what was being written)."""
+        done = self.done()
+        kept = sum(b - a for a, b in done)
+        return DiskFullError(
+            f"the disk holding {self.final_path} is full ({exc.strerror or exc}) while {doing}: the {len(done)} "
+            f"finished chunk(s) ({kept} of {n_total} epochs, {_bytes(self.folder) / 1e6:.2g} MB) are safe in "
+            f"{self.folder}; free space (df -h {os.path.dirname(os.path.abspath(self.final_path))}) and run the same "
+            "command again to resume")
 
     @staticmethod
     def stored_digest(final_path):

@@ -49,28 +49,16 @@ def _run_point(opts):
 
 def run_sweep(points, *, scheduler=None, workers=2, log=print):
     """Run the sweep points on Dask; return their (path, report) in order."""
-    from dask.distributed import Client, LocalCluster, as_completed
+    from simcore.pipeline.cluster import run_tasks
     todo = [p for p in points if not os.path.exists(p.output)]
     log(f"sweep: {len(points)} runs, {len(points) - len(todo)} already finished")
     if not todo:
         return [_run_point(p) for p in points]
-    if scheduler:
-        client, cluster = Client(scheduler), None
-    else:
-        # ":0": any free port. None still asks for 8787, and a second sweep (or any Dask) on the machine then
-        # trips over the first one's dashboard.
-        cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                               dashboard_address=":0")   # any free port: never "8787 in use"
-        client = Client(cluster)
-    try:
-        futures = {client.submit(_run_point, p, pure=False): p for p in todo}
-        for fut in as_completed(futures):
-            path, report = fut.result()
-            log(f"  done {os.path.basename(path)}: check {'PASS' if report['pass'] else 'FAIL'}")
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+
+    def done(_, result):
+        path, report = result
+        log(f"  done {os.path.basename(path)}: check {'PASS' if report['pass'] else 'FAIL'}")
+    run_tasks(_run_point, [(p,) for p in todo], scheduler=scheduler, workers=workers, on_done=done, what="run")
     return [_run_point(p) for p in points]
 
 

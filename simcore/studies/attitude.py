@@ -43,30 +43,20 @@ def _task_file(cache, task):
 
 def _run_tasks(tasks, cache, *, scheduler=None, workers=2, log=print):
     """Run the evaluations on Dask; each finished one is kept in ``cache`` (a study started again skips it)."""
-    from dask.distributed import Client, LocalCluster, as_completed
+    from simcore.pipeline.cluster import run_tasks
     os.makedirs(cache, exist_ok=True)
     todo = [t for t in tasks if not os.path.exists(_task_file(cache, t))]
     log(f"  {len(tasks) - len(todo)} of {len(tasks)} evaluations already done")
+    finished = []
+
+    def done(task, summary):
+        with open(_task_file(cache, task), "w") as f:
+            json.dump(summary, f)
+        finished.append(task)
+        if len(finished) % 10 == 0 or len(finished) == len(todo):
+            log(f"  {len(finished)}/{len(todo)} evaluations done")
     if todo:
-        if scheduler:
-            client, cluster = Client(scheduler), None
-        else:
-            # ':0': the scheduler's HTTP server on a free port, so two studies (or a sweep) can run at once.
-            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                                   dashboard_address=":0")
-            client = Client(cluster)
-        try:
-            futures = {client.submit(_task, *t, pure=False): t for t in todo}
-            for i, fut in enumerate(as_completed(futures), start=1):
-                summary = fut.result()
-                with open(_task_file(cache, futures[fut]), "w") as f:
-                    json.dump(summary, f)
-                if i % 10 == 0 or i == len(todo):
-                    log(f"  {i}/{len(todo)} evaluations done")
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+        run_tasks(_task, todo, scheduler=scheduler, workers=workers, on_done=done, what="evaluation")
     out = {}
     for t in tasks:
         with open(_task_file(cache, t)) as f:
@@ -81,14 +71,14 @@ def attitude_study(folder="runs/thesis", *, span="orbits", configs=CONFIGS, gyro
     from simcore.sensor.gyro import gyro_spec
     from simcore.sensor.magnetometer import magnetometer_spec
     from scenes.config import SatelliteConfig
+    from simcore.pipeline.preflight import check_seeds
     if span not in SPANS:
         raise ValueError(f"unknown span {span!r}; choose one of {', '.join(SPANS)}")
     gyros = [gyro_spec(g).name for g in gyros]
     magnetometer = magnetometer_spec(magnetometer).name
     for c in configs:
         SatelliteConfig.load(c)
-    if not seeds:
-        raise ValueError("give at least one seed")
+    check_seeds(seeds, "--seeds")                      # before anything is rendered
     page_folder = page_folder or default_page(folder, span, thermal_compensation)
     os.makedirs(folder, exist_ok=True)
     os.makedirs(page_folder, exist_ok=True)
