@@ -19,6 +19,14 @@ six bare face diodes, two solar-cell wings: shadows and the path-traced ``reflec
 same accuracies, timed with and without the reflected light (target <= 4 ms per epoch, issue 13); its
 figures are the JSON object's ``cubesat3u_panels`` entry (``--no-3u`` skips it).
 
+The main render runs with Dr.Jit's kernel history on (``drjit.JitFlag.KernelHistory``): the host share of its
+wall time is the time outside Dr.Jit's kernel execution (the history's ``execution_time`` of every launch,
+replayed frozen kernels included), i.e. Python, numpy, tracing and launching (issue 32: below 15 % on
+llvm_ad_mono). Then Embree's raw ``scene.ray_test`` (Mitsuba's occluder scene of the same mesh, as the renderer
+builds it) traces the same number of rays as the render, from the diodes' centres in uniform random directions
+over each diode's hemisphere, in launches of the renderer's size (``_MAX_LANES``), timed alone: the renderer's
+share of that raw rate is printed (``--no-raw`` skips it).
+
 Last line: one JSON object.
 """
 import argparse
@@ -96,6 +104,46 @@ def bench_3u(sun, earth, rot, targets, *, variant=None, threads=None):
                 target_ms=THREE_U_TARGET_MS, meets_target=bool(ms <= THREE_U_TARGET_MS), warmup_s=round(warm_s, 2))
 
 
+def host_share(history, wall_s):
+    """Return (share of ``wall_s`` outside Dr.Jit's kernel execution, kernel seconds, launches) from a
+    ``drjit.kernel_history()`` list."""
+    kernel_s = sum(k.get("execution_time", 0.0) for k in history) / 1e3
+    return 1.0 - kernel_s / wall_s, kernel_s, len(history)
+
+
+def raw_ray_test(mesh, diodes, n_rays, variant=None, seed=0):
+    """Return (seconds, rays) of Embree's bare ``scene.ray_test`` on ``mesh`` for ``n_rays`` rays from the
+    diodes' centres in uniform random directions over each one's hemisphere, in launches of the renderer's
+    size; the rays are built before the timing (one launch's worth, traced again until ``n_rays``)."""
+    from simcore._llvm import host_array, import_drjit, import_mitsuba
+    from simcore.render.irradiance import _MAX_LANES, choose_variant, occluder_scene
+    dr, mi = import_drjit(), import_mitsuba()
+    mi.set_variant(choose_variant(variant))
+    scene = occluder_scene(mesh, mi)
+    per = min(int(n_rays), _MAX_LANES)
+    rng = np.random.default_rng(seed)
+    k = rng.integers(0, len(diodes.positions_m), per)
+    d = rng.normal(size=(per, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    n = np.asarray(diodes.frames)[k, 2]
+    d = np.where((np.einsum("ij,ij->i", d, n) < 0)[:, None], -d, d)      # into the diode's hemisphere
+    o = np.asarray(diodes.positions_m)[k] + 1e-6 * n
+    ray = mi.Ray3f(mi.Point3f(*(host_array(mi.Float, o[:, i]) for i in range(3))),
+                   mi.Vector3f(*(host_array(mi.Float, d[:, i]) for i in range(3))))
+    dr.eval(ray.o, ray.d)
+    dr.eval(scene.ray_test(ray))             # (warm: compile the launch)
+    dr.sync_thread()                         # (on the CPU, drjit.eval returns before its kernel has run)
+    done, t0 = 0, time.perf_counter()
+    while done < n_rays:
+        m = min(per, int(n_rays) - done)
+        r = ray if m == per else mi.Ray3f(dr.gather(mi.Point3f, ray.o, dr.arange(mi.UInt32, m)),
+                                          dr.gather(mi.Vector3f, ray.d, dr.arange(mi.UInt32, m)))
+        dr.eval(scene.ray_test(r))
+        dr.sync_thread()
+        done += m
+    return time.perf_counter() - t0, done
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--epochs", type=int, default=5880, help="epochs to render (default: one orbit)")
@@ -106,6 +154,7 @@ def main():
     ap.add_argument("--material", default="black", help="surface of the body and mounts (default: black)")
     ap.add_argument("--reflected-samples", type=int, default=256)
     ap.add_argument("--no-3u", action="store_true", help="skip the 3U panels example (scenes/examples)")
+    ap.add_argument("--no-raw", action="store_true", help="skip Embree's raw ray_test rate")
     args = ap.parse_args()
 
     from dataclasses import replace
@@ -124,12 +173,17 @@ def main():
     rend.render(sun[:64], earth[:64], rot[:64], seed=99, **targets)     # compile the kernels
     warm_s = time.perf_counter() - t0
 
-    t0, c0 = time.perf_counter(), time.process_time()
-    res = rend.render(sun, earth, rot, seed=1, **targets)
-    dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+    dr = rend._dr
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+        dr.kernel_history_clear()
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = rend.render(sun, earth, rot, seed=1, **targets)
+        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+        host, kernel_s, launches = host_share(dr.kernel_history(), dt)
     n, k = res.direct_w_m2.shape
     ms = dt / n * 1e3
     rays = res.rays
+    extra = dict(host_share=round(host, 4), kernel_s=round(kernel_s, 3), launches=launches)
     floor = 0.01
     met_d = np.mean(res.direct_se_w_m2 <= np.maximum(0.002 * res.direct_w_m2, floor))
     met_a = np.mean(res.albedo_se_w_m2 <= np.maximum(0.01 * res.albedo_w_m2, floor))
@@ -144,9 +198,17 @@ def main():
           f"albedo {res.albedo_samples.sum() / n:.0f}); {rays / dt / 1e6:.2f} M rays/s")
     print(f"targets met (0.2 % direct, 1 % albedo, or se <= {floor} W/m^2): direct {met_d:.4f}, "
           f"albedo {met_a:.4f}; sunlit diode-epochs {lit.mean():.3f}")
+    print(f"host share of the render's wall time: {host:.3f} (Dr.Jit kernels {kernel_s:.2f} s of {dt:.2f} s, "
+          f"{launches} launches: {1e3 * (dt - kernel_s) / max(launches, 1):.2f} ms outside kernels per launch)")
+    if not args.no_raw:
+        raw_s, raw_n = raw_ray_test(mesh, rend.diodes, rays, variant=res.variant)
+        raw_rate = raw_n / raw_s
+        print(f"Embree's raw ray_test, same mesh, {raw_n} rays from the diodes (random directions): "
+              f"{raw_s:.2f} s = {raw_rate / 1e6:.2f} M rays/s; the renderer at {rays / dt / 1e6:.2f} M rays/s is "
+              f"{rays / dt / raw_rate:.2f} of it")
+        extra.update(raw_ray_test_rays_per_s=round(raw_rate), renderer_share_of_raw=round(rays / dt / raw_rate, 4))
     day_s = 86400 * ms / 1e3
     print(f"projected 24 h at 1 s: {day_s / 60:.1f} min (target <= 10 min, stretch <= 3 min)")
-    extra = {}
     if args.material != "black":
         t0 = time.perf_counter()
         rend.render(sun, earth, rot, seed=1, reflected=False, **targets)
@@ -156,7 +218,7 @@ def main():
         print(f"reflected ({args.material}): {ms_refl:.3f} ms per epoch of the {ms:.3f} "
               f"({args.reflected_samples} paths per diode-epoch); mean {np.nanmean(r):.2f} W/m^2, "
               f"max {np.nanmax(r):.1f} W/m^2, median se/value where > 0: {np.nanmedian(se[some] / r[some]):.2f}")
-        extra = dict(material=args.material, reflected_ms_per_epoch=round(ms_refl, 4),
+        extra.update(material=args.material, reflected_ms_per_epoch=round(ms_refl, 4),
                      reflected_samples_per_epoch=round(res.reflected_samples.sum() / n),
                      reflected_mean_w_m2=round(float(np.nanmean(r)), 3))
     if not args.no_3u:

@@ -13,6 +13,7 @@ import glob
 import os
 import re
 import sys
+import threading
 
 import numpy as np
 
@@ -95,6 +96,16 @@ def import_drjit():
     configure()
     import drjit
     return drjit
+
+
+# Dr.Jit 1.5 deadlocks when one thread calls a frozen function (``drjit.freeze``) while another runs Dr.Jit
+# operations: the frozen call holds Dr.Jit's state while it calls back into Python to traverse its inputs (and
+# waits for the interpreter's lock), and the other thread holds the interpreter's lock while it waits for
+# Dr.Jit's state, spinning (seen once in ``sunsim run`` on a loaded 2-core machine: the render's frozen albedo
+# proposal in the main thread, the direct reference's body-box kernel in the worker thread; both threads at
+# 100 % CPU for minutes, no progress). Sections of Dr.Jit work that may run beside a frozen call in another
+# thread hold this lock, and so do the frozen calls; Python's lock gives up the interpreter's while it waits.
+FROZEN_CALLS = threading.RLock()
 
 
 def import_mitsuba():

@@ -625,7 +625,7 @@ def cmd_attitude_study(args):
 
 def _add_attitude_study_parser(sub):
     """Add ``sunsim attitude-study`` to the subparsers."""
-    from simcore.studies.attitude import CONFIGS, GYROS, SPANS
+    from simcore.studies.choices import CONFIGS, GYROS, SPANS
     p = sub.add_parser("attitude-study", help="attitude error per configuration x gyro (MEKF on rendered runs, "
                                               "seeds on Dask), with a results page")
     p.add_argument("--span", choices=list(SPANS), default="orbits",

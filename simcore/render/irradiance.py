@@ -769,7 +769,7 @@ class Renderer:
                 anchored, state_fn=lambda *a, **k: state_ref()(*a, **k))
         # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
         # arrays, released inside the frozen call, would abort the process as above.
-        with _no_cycle_collection():
+        with _no_cycle_collection(), _llvm.FROZEN_CALLS:    # (see _llvm.FROZEN_CALLS: another thread's Dr.Jit work)
             return frozen(lanes, *args)
 
     def _kernel_state(self, *args, **kwargs):

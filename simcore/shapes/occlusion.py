@@ -167,14 +167,17 @@ def _box_pairs(table, diode, d):
     dr = _llvm.import_drjit()
     from drjit.llvm import Float64, UInt32
     n_cols = table.shape[1]
-    rows = _llvm.host_array(Float64, table)
-    row = _llvm.host_array(UInt32, diode) * n_cols      # the kernel's code depends on neither T nor K
-    dirs = _llvm.host_array(Float64, d)
-    lane = dr.arange(UInt32, T) * 3
-    with_box, own = _lit_with_box_kernel(lambda c: dr.gather(Float64, rows, row + c), (n_cols - 17) // 3,
-                                         [dr.gather(Float64, dirs, lane + i) for i in range(3)])
-    dr.eval(with_box, own)
-    return np.asarray(with_box.numpy(), dtype=float), np.asarray(own.numpy(), dtype=float)
+    with _llvm.FROZEN_CALLS:        # it may run in a worker thread beside the renderer's frozen kernels
+        rows = _llvm.host_array(Float64, table)
+        row = _llvm.host_array(UInt32, diode) * n_cols      # the kernel's code depends on neither T nor K
+        dirs = _llvm.host_array(Float64, d)
+        lane = dr.arange(UInt32, T) * 3
+        with_box, own = _lit_with_box_kernel(lambda c: dr.gather(Float64, rows, row + c), (n_cols - 17) // 3,
+                                             [dr.gather(Float64, dirs, lane + i) for i in range(3)])
+        dr.eval(with_box, own)
+        out = np.asarray(with_box.numpy(), dtype=float), np.asarray(own.numpy(), dtype=float)
+        del rows, row, dirs, lane, with_box, own      # their Dr.Jit variables released under the lock too
+    return out
 
 
 def _table(aperture_params, frames, positions_m, half_m):

@@ -16,9 +16,8 @@ import numpy as np
 
 from simcore.plots import plot_attitude_bars, plot_mekf
 
+from simcore.studies.choices import GYROS
 from simcore.studies.reproduce import CONFIGS, SPANS, ensure_run, run_options
-
-GYROS = ("MPU-3300", "IMU160", "BMG160", "L3G4200D")   # the thesis' recommendation and the flown part
 
 
 def default_page(folder, span, thermal_compensation=False):

@@ -38,11 +38,8 @@ from simcore.pipeline.store import chunk_ranges
 from simcore.radiometry.analytic import diode_irradiance
 from simcore.radiometry.response import Eq415Response
 from simcore.sensor.chain import DIODES
+from simcore.studies.choices import CONFIGS, SPANS
 
-CONFIGS = ("tilt0_fov90", "tilt20_fov70", "tilt20_fov75", "tilt25_fov70", "tilt25_fov75", "tilt30_fov70",
-           "tilt30_fov75")
-SPANS = {"day": ("2016-07-02T00:00:00Z", 86400.0), "orbits": ("2016-07-02T05:00:00Z", 10000.0),
-         "short": ("2016-07-02T00:45:00Z", 600.0)}   # "short": a demonstration that runs in a minute
 CROSS_MAP_CONFIG = "tilt20_fov70"                    # the on-board albedo prediction across maps
 DAY_START = "2016-07-02T00:00:00"                    # the thesis' t = 0 (table 4.3)
 DIODE = "BPW34FS"

@@ -1,0 +1,68 @@
+"""Where a ``sunsim run``'s time goes beside the renderer: each piece of a run's chunk timed alone, in turn.
+
+The default study (as ``sunsim run``), epochs [--first, --first + --epochs) in the run's chunks; per chunk, one
+after another in the main thread (no overlap, so each figure is that piece's own cost): the render, the check's
+hint-free direct re-render of its share of the epochs, the direct-Sun reference (numpy and the body box's Dr.Jit
+kernel; in the run it goes to the worker thread), the albedo on the native cells and on the refined cells (Dr.Jit
+kernels), the unchecked-direct masks; once: the visibility tables. Each piece's share of the render's time is
+printed: what the run costs on top of the renderer (issue 32 item 2).
+
+    .venv/bin/python benchmarks/bench_check.py [--epochs N] [--first I]
+
+Last line: one JSON object (seconds per piece).
+"""
+import argparse
+import json
+import os
+import time
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--epochs", type=int, default=2048, help="epochs to time (default %(default)s)")
+    ap.add_argument("--first", type=int, default=2048,
+                    help="first epoch (default %(default)s: sunlit, 34 min into the default run)")
+    a = ap.parse_args(argv)
+    import numpy as np
+    from simcore.pipeline.run import PLAIN_CHECK_SAMPLES, PreparedRun, RunOptions, plain_check_epochs
+    load0 = os.getloadavg()[0]
+    o = RunOptions(duration_s=float(a.first + a.epochs))
+    st = PreparedRun(o)
+    g = st.geometry
+    T = {}
+
+    def timed(name, f, *args, **kw):
+        t0 = time.perf_counter()
+        out = f(*args, **kw)
+        T[name] = T.get(name, 0.0) + time.perf_counter() - t0
+        return out
+    timed("renderer (scene, tables)", lambda: st.renderer)
+    timed("visibility tables (once)", lambda: st.visibility)
+    for start in range(a.first, a.first + a.epochs, o.chunk_epochs):
+        sl = slice(start, min(start + o.chunk_epochs, a.first + a.epochs))
+        args = (g.sun_dir_body[sl], g.earth_center_body_m[sl], g.R_ecef_from_body[sl], st.sun_scale(sl))
+        timed("render", st.renderer.render, *args, sun_dir_earth_body=st.earth_sun_dir_body(sl),
+              earth_sun_scale=st.earth_sun_scale(sl), seed=o.seed, epoch_offset=start,
+              direct_samples=o.direct_samples, albedo_samples=o.albedo_samples, rel_se_direct=o.rel_se_direct,
+              rel_se_albedo=o.rel_se_albedo, reflected_samples=o.reflected_samples)
+        pick = np.flatnonzero(plain_check_epochs(o.seed, len(st.epochs))[sl])
+        if len(pick):
+            timed("hint-free direct re-render", st.renderer.render, *(x[pick] for x in args), seed=o.seed,
+                  epoch_index=sl.start + pick, albedo=False, hint=False, reflected=False,
+                  direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
+        timed("direct reference", st.analytic, sl, st.map, albedo=False)
+        timed("albedo, native cells", st.analytic, sl, st.map, direct=False, mesh=True, box_albedo=True)
+        timed(f"albedo, cells refined {st.check_refine}x{st.check_refine}", st.analytic, sl, st.map_refined,
+              direct=False, mesh=True)
+        timed("unchecked-direct masks", st.direct_unchecked, sl)
+    r = T["render"]
+    print(f"default study, epochs {a.first}..{a.first + a.epochs} (sunlit {np.mean(g.illumination[a.first:a.first + a.epochs] > 0):.2f}), "
+          f"chunks of {o.chunk_epochs}; load average (1 min) {load0:.2f} on {os.cpu_count()} cores")
+    for k, v in T.items():
+        print(f"  {k:<32} {v:7.2f} s  {v / r:6.3f} x the render")
+    print(json.dumps({"bench": "check", "first": a.first, "epochs": a.epochs, "load_at_start": round(load0, 2),
+                      "seconds": {k: round(v, 3) for k, v in T.items()}}))
+
+
+if __name__ == "__main__":
+    main()
