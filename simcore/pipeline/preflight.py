@@ -114,6 +114,26 @@ def check_clouds(opts):
     check_cloud_options(opts.reflectivity, clouds, scale_km)
 
 
+def check_model_inputs(config, tle, map_name, clouds=None):
+    """Read the scene ``config``, the TLE file ``tle`` and the reflectivity map ``map_name`` (with its cloud
+    weather seed ``clouds``) as a run would; raise the readers' one-line UserError for the first that is wrong.
+    For the commands that read other inputs (telemetry) and make folders before their runs start: the run's own
+    checks (:func:`simcore.pipeline.run.prepare`) then only repeat what has passed here."""
+    from scenes.config import SatelliteConfig
+    from simcore.environment.orbit import Orbit
+    from simcore.radiometry import band
+    config = SatelliteConfig.load(config)
+    Orbit.from_file(tle)
+    check_band(map_name)
+    name = map_for_diodes(map_name, config)
+    if clouds is None:
+        check_map(band.resolve_map(name, None))
+    else:
+        from simcore.environment.clouds import check_cloud_options
+        check_cloud_options(name, clouds, None)
+    return config
+
+
 def check_variant(variant):
     """Return the Mitsuba variant a run will use; raise InvalidInputError if ``variant`` cannot run here."""
     from simcore.render import irradiance as render
