@@ -75,6 +75,14 @@ def runs(tmp_path_factory):
     np.savez(d / "map_nan.npz", reflectivity=np.full((180, 288), np.nan))
     np.savez(d / "map_neg.npz", reflectivity=np.full((180, 288), -0.3))
     _later_inputs(d)
+    import xarray as xr
+    for name, drop in (("no_t_s", "t_s"), ("no_diode_name", "diode_name"), ("no_e_sun", None)):
+        ds = xr.load_dataset(good)          # an older run file (no checksums) that lacks what a format needs
+        del ds.attrs["checksums"]
+        ds = ds.drop_vars(drop) if drop else ds
+        if drop is None:
+            del ds.attrs["e_sun_w_m2"]
+        ds.to_netcdf(d / f"{name}.nc", engine="h5netcdf")
     return d
 
 
@@ -214,7 +222,7 @@ BAD = [
     (RUN + ["--config", PANELS, "--reflected-samples", "1000000000000"], "beyond this machine's"),
     (RUN + ["--spin-rate", "nan"], "--spin-rate must be a finite number of deg/s"),
     (RUN + ["--spin-rate", "1e4"], "--spin-rate 10000 deg/s is faster than 360 deg/s"),
-    (RUN + ["--glint", "1e6"], "--glint 1e+06 m/s is above 30 m/s"),
+    (RUN + ["--glint", "1e6"], "--glint WIND_M_S 1e+06 m/s is above the 30 m/s"),
     (RUN + ["--glint", "-1"], "--glint WIND_M_S must be a finite wind speed >= 0"),
     (RUN + ["--glint", "nan"], "--glint WIND_M_S must be a finite wind speed >= 0"),
     (RUN + ["--attitude", "RUNS/att.csv", "--dynamics", "0.1,0.2,0.3"], "--attitude and --dynamics both set"),
@@ -305,7 +313,7 @@ BAD = [
     (["attitude-study", "--folder", "/proc/x"], "/proc/x"),
     (["attitude-study", "--page", "/proc/x"], "/proc/x"),
     # ---- earth-study
-    (["earth-study", "--wind", "100"], "--wind 100 m/s is above 30 m/s"),
+    (["earth-study", "--wind", "100"], "--wind 100 m/s is above the 30 m/s"),
     (["earth-study", "--wind", "-1"], "--wind"),
     (["earth-study", "--wind", "nan"], "--wind"),
     (["earth-study", "--cloud-seeds", "-1"], "--cloud-seeds must be a whole number"),
@@ -399,6 +407,7 @@ BAD = [
     (FLIGHT + ["--plots", "/proc/plots"], "choose another --plots"),
     (FLIGHT + ["--study", "/proc/study"], "choose another --study"),
     (FLIGHT + ["--runs", "/proc/runs"], "choose another --runs"),
+    (FLIGHT + ["--plots", "RUNS/att.csv"], "is a file"),
     (FLIGHT + ["--fit", "--pd", PD], "--fit calibrates on the shipped telemetry only"),
     (FLIGHT + ["--fit", "--study", "s"], "--fit ignores --study"),
     (FLIGHT + ["--study", "s", "--clouds", "1"], "--study ignores --clouds"),
@@ -426,6 +435,9 @@ BAD = [
     (["export", "RUNS/good.nc", "--format", "csv", "--diode", "BPW3"], "--diode BPW3 is unknown"),
     (["export", "RUNS/good.nc", "--format", "csv", "--seed", "-1"], "--seed must be a whole number"),
     (["export", "RUNS/good.nc", "--format", "aem", "--noise"], "--format aem ignores them"),
+    (["export", "RUNS/no_t_s.nc", "--format", "basilisk"], "lacks t_s, which --format basilisk needs"),
+    (["export", "RUNS/no_diode_name.nc", "--format", "csv"], "lacks diode_name, which --format csv needs"),
+    (["export", "RUNS/no_e_sun.nc", "--format", "basilisk"], "lacks attribute e_sun_w_m2"),
     # ---- run --times (issue 29)
     *[(TIMES + [f"RUNS/{f}"], words) for f, words in (
         ("nope.txt", "not found"), ("times_empty.txt", "no times found"), ("times.bin", "holds binary data"),
@@ -496,6 +508,20 @@ def test_the_catalogue_fails_on_the_old_handling(runs, capsys, monkeypatch, trip
     monkeypatch.setitem(arguments._CHECKS, "run", leaves_a_file)
     with pytest.raises(AssertionError, match="leave nothing behind"):
         _refused(RUN + ["--seed", "-1"], "--seed", runs, capsys, monkeypatch)
+
+
+def test_the_flight_check_catalogue_fails_on_the_old_handling(runs, capsys, monkeypatch, tripwire):
+    """Without the flight-check's argument checks, an unwritable --plots folder is found only after the render
+    (work started); without the model inputs read first, a bad --tle leaves the runs folder behind."""
+    import simcore.pipeline.arguments as arguments
+    import simcore.pipeline.preflight as preflight
+    monkeypatch.setitem(arguments._CHECKS, "flight-check", lambda args: None)
+    with pytest.raises(AssertionError, match="work started"):
+        _refused(FLIGHT + ["--plots", "/proc/plots"], "--plots", runs, capsys, monkeypatch)
+    monkeypatch.undo()                       # the tripwire's predict gone too: predict makes its folder first
+    monkeypatch.setattr(preflight, "check_model_inputs", lambda *a, **k: None)
+    with pytest.raises(AssertionError, match="leave nothing behind"):
+        _refused(FLIGHT + ["--tle", "RUNS/tle.bin"], "tle.bin", runs, capsys, monkeypatch)
 
 
 def test_an_old_run_file_without_checksums_is_used_with_a_note(runs, tmp_path, capsys):

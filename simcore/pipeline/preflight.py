@@ -189,9 +189,7 @@ def map_for_diodes(map_name, config):
     return f"{map_name}:{declared}"
 
 # ---- seeds, rates, winds: the limits every command shares --------------------------------------------------------
-# Cox & Munk's fit (1954) spans winds of about 1-14 m/s; above ~30 m/s (hurricane force, Beaufort 11-12) the sea is
-# foam and spray, which no mean-square-slope model describes: such a --glint is a typo or a unit (km/h, knots) mix-up.
-WIND_MAX_M_S = 30.0
+# The winds: simcore.radiometry.glint.MAX_WIND_M_S (check_glint below).
 # The fastest spin a CubeSat is designed for: ESTCube-1 was to spin up to one turn a second (360 deg/s) to deploy
 # its electric-sail tether (Slavinskis et al. 2015). Faster rates are a unit mistake (rpm, rad/s given as deg/s...).
 SPIN_MAX_DEG_S = 360.0
@@ -211,23 +209,11 @@ def check_seeds(values, option):
         check_seed(v, option)
 
 
-def check_glint(wind_m_s, option="--glint"):
-    """Return the wind speed (m/s) of a sea glint option, or raise InvalidInputError: negative, not finite, or above
-    WIND_MAX_M_S, where Cox & Munk's model of the sea surface no longer applies."""
+def check_glint(wind_m_s, option="--glint WIND_M_S"):
+    """Return the wind speed (m/s) of a sea glint option, or raise InvalidInputError naming ``option``: negative, not
+    finite, or above the limit of :func:`simcore.radiometry.glint.check_wind` (one place for the rule)."""
     from simcore.radiometry.glint import check_wind
-    if option != "--glint":
-        try:
-            ok = math.isfinite(float(wind_m_s)) and float(wind_m_s) >= 0
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise InvalidInputError(f"{option} must be a finite wind speed >= 0 m/s (e.g. 7), got {wind_m_s}")
-    w = check_wind(wind_m_s)
-    if w > WIND_MAX_M_S:
-        raise InvalidInputError(f"{option} {wind_m_s:g} m/s is above {WIND_MAX_M_S:g} m/s (hurricane force: the sea is "
-                                "foam and spray, outside Cox & Munk's fit of about 1-14 m/s); give the wind at 12.5 m "
-                                "in m/s, e.g. 7")
-    return w
+    return check_wind(wind_m_s, option)
 
 
 def check_spin_rate(rate_deg_s, option="--spin-rate"):
