@@ -39,7 +39,8 @@ def _add_orbit_options(p, ephemeris=False):
                                                  + (", or the first epoch of an --orbit ephemeris)" if ephemeris else ")"))
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="seconds to simulate (default: one orbital period, or the rest of an --attitude history)")
-    p.add_argument("--step", type=float, default=1.0, metavar="S", help="seconds between epochs (default: %(default)s)")
+    p.add_argument("--step", type=float, default=1.0, metavar="S", action=NotedGiven,
+                   help="seconds between epochs (default: %(default)s)")
     p.add_argument("--spin-rate", type=float, default=1.9, metavar="DEG_S", action=NotedGiven,
                    help="tumble rate about the body diagonal (default: %(default)s deg/s, thesis)")
 

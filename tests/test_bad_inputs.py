@@ -74,7 +74,65 @@ def runs(tmp_path_factory):
     (d / "map_bad.npz").write_bytes(b"PK\x03\x04 not really a zip")
     np.savez(d / "map_nan.npz", reflectivity=np.full((180, 288), np.nan))
     np.savez(d / "map_neg.npz", reflectivity=np.full((180, 288), -0.3))
+    _later_inputs(d)
+    import xarray as xr
+    for name, drop in (("no_t_s", "t_s"), ("no_diode_name", "diode_name"), ("no_e_sun", None)):
+        ds = xr.load_dataset(good)          # an older run file (no checksums) that lacks what a format needs
+        del ds.attrs["checksums"]
+        ds = ds.drop_vars(drop) if drop else ds
+        if drop is None:
+            del ds.attrs["e_sun_w_m2"]
+        ds.to_netcdf(d / f"{name}.nc", engine="h5netcdf")
     return d
+
+
+def _later_inputs(d):
+    """Input files of the commands and options that came after the first catalogue (issues 29 and 34): the
+    flight-check's telemetry cut, emptied, made binary or moved to other days; --times files; absolute-time
+    attitude CSVs and AEMs; results folders of --page."""
+    from simcore.environment.telemetry import OPSSAT_ATTITUDE, OPSSAT_PD
+    pd, att = OPSSAT_PD.read_text().splitlines(), OPSSAT_ATTITUDE.read_text().splitlines()
+    (d / "pd_empty.csv").write_text("")
+    (d / "pd.bin").write_bytes(bytes(range(256)) * 8)
+    (d / "pd_header.csv").write_text(pd[0] + "\n")
+    (d / "pd_cut.csv").write_text("\n".join(pd[:50]) + "\n" + pd[50][:10])
+    # the same readings a year earlier: no reading falls in the attitude history
+    (d / "pd_2019.csv").write_text("\n".join([pd[0]] + [r.replace("2020-", "2019-", 1) for r in pd[1:200]]) + "\n")
+    (d / "grains_empty.csv").write_text("")
+    (d / "grains.bin").write_bytes(bytes(range(256)) * 8)
+    (d / "grains_cut.csv").write_text("\n".join(att[:200]) + "\n" + att[200][:12])
+    (d / "grains_header.csv").write_text("\n".join(att[:12]) + "\n")
+    t0, t1 = "2016-07-02T00:45:00Z", "2016-07-02T00:45:10Z"
+    (d / "times.txt").write_text(f"{t0}\n{t1}\n")
+    (d / "times_empty.txt").write_text("# no times\n")
+    (d / "times_back.txt").write_text(f"{t1}\n{t0}\n")
+    (d / "times_twice.txt").write_text(f"{t0}\n{t0}\n")
+    (d / "times_words.txt").write_text(f"{t0}\nyesterday\n")
+    (d / "times_seconds.txt").write_text("0\n10\n")
+    (d / "times.bin").write_bytes(bytes(range(256)) * 4)
+    head = "time_utc,qw,qx,qy,qz\n"
+    (d / "abs.csv").write_text(f"{head}{t0},1,0,0,0\n{t1},1,0,0,0\n")
+    (d / "abs_short_row.csv").write_text(f"{head}{t0},1,0,0,0\n{t1},1,0,0\n")
+    (d / "abs_word.csv").write_text(f"{head}{t0},1,0,0,0\nsoon,1,0,0,0\n")
+    (d / "abs_norm.csv").write_text(f"{head}{t0},1,0,0,0\n{t1},2,0,0,0\n")
+    (d / "abs_nan.csv").write_text(f"{head}{t0},1,0,0,0\n{t1},nan,0,0,0\n")
+    (d / "abs_back.csv").write_text(f"{head}{t1},1,0,0,0\n{t0},1,0,0,0\n")
+    (d / "abs_itrf.csv").write_text(f"# frame: ITRF\n{head}{t0},1,0,0,0\n{t1},1,0,0,0\n")
+    (d / "abs_sideways.csv").write_text(f"# direction: sideways\n{head}{t0},1,0,0,0\n{t1},1,0,0,0\n")
+    aem = ("CCSDS_AEM_VERS = 1.0\nCREATION_DATE = 2020-01-01T00:00:00\nORIGINATOR = X\nMETA_START\nOBJECT_NAME = S\n"
+           "OBJECT_ID = 1\nCENTER_NAME = EARTH\nREF_FRAME_A = EME2000\nREF_FRAME_B = SC_BODY_1\nATTITUDE_DIR = A2B\n"
+           "TIME_SYSTEM = UTC\nSTART_TIME = 2016-07-02T00:45:00\nSTOP_TIME = 2016-07-02T00:45:10\n"
+           "ATTITUDE_TYPE = QUATERNION\nMETA_STOP\nDATA_START\n2016-07-02T00:45:00 0 0 0 1\n")
+    (d / "aem_cut.aem").write_text(aem + "2016-07-02T00:45:10 0 0")
+    (d / "aem_empty.aem").write_text("")
+    (d / "aem_header.aem").write_text("CCSDS_AEM_VERS = 1.0\nMETA_START\n")
+    for name, text in (("page_bin", bytes(range(256)) * 8), ("page_json", b'{"models": '), ("page_keys", b"{}")):
+        (d / name).mkdir()
+        (d / name / "results.json").write_bytes(text)
+    (d / "page_npz").mkdir()
+    shutil.copy(os.path.join(os.path.dirname(__file__), "..", "docs", "flight_opssat", "results.json"),
+                d / "page_npz" / "results.json")
+    (d / "page_npz" / "samples.npz").write_bytes(b"PK\x03\x04 not really a zip")
 
 
 @pytest.fixture
@@ -94,6 +152,9 @@ def tripwire(monkeypatch):
     import simcore.studies.earth_band
     import simcore.studies.reproduce
     import simcore.studies.response
+    import simcore.pipeline.export
+    import simcore.studies.flight
+    import simcore.studies.flight_page
     from estimators import attitude as mekf
     for module, name in [(simcore.pipeline.run.PreparedRun, "render_chunk"), (scenes.view, "view_picture"),
                          (simcore.pipeline.cluster, "run_tasks"), (simcore.pipeline.evaluate, "evaluate_run"),
@@ -101,7 +162,11 @@ def tripwire(monkeypatch):
                          (simcore.pipeline.sweep, "sweep"), (simcore.render.spectral_check, "compare"),
                          (simcore.studies.attitude, "ensure_run"), (simcore.studies.coverage, "coverage_fractions"),
                          (simcore.studies.earth_band, "earth_study"), (simcore.studies.reproduce, "reproduce"),
-                         (simcore.studies.response, "traced_response")]:
+                         (simcore.studies.response, "traced_response"), (simcore.studies.flight, "predict"),
+                         (simcore.studies.flight, "fit_normals"), (simcore.studies.flight_page, "run_study"),
+                         (simcore.studies.flight_page, "render_page"),
+                         (simcore.studies.flight_page, "comparison_figures"),
+                         (simcore.pipeline.export, "atomic_write")]:
         monkeypatch.setattr(module, name, started)
 
 
@@ -134,6 +199,11 @@ def _refused(argv, words, runs, capsys, monkeypatch):
 
 
 RUN = ["run"] + TINY
+TIMES = ["run", "--samples", "256", "256", "--times"]
+FLIGHT = ["flight-check", "opssat"]
+_OPSSAT = os.path.join(os.path.dirname(__file__), "..", "simcore", "data", "flight", "opssat")
+PD = os.path.join(_OPSSAT, "pd_theta_2020-11-15_to_21.csv")
+GRAINS = os.path.join(_OPSSAT, "attitude_2020-11-15_to_21.csv")
 BAD = [
     # ---- run: numbers, units, seeds, sample counts, conflicts
     (RUN + ["--duration", "nan"], "--duration must be a positive number of seconds"),
@@ -152,7 +222,7 @@ BAD = [
     (RUN + ["--config", PANELS, "--reflected-samples", "1000000000000"], "beyond this machine's"),
     (RUN + ["--spin-rate", "nan"], "--spin-rate must be a finite number of deg/s"),
     (RUN + ["--spin-rate", "1e4"], "--spin-rate 10000 deg/s is faster than 360 deg/s"),
-    (RUN + ["--glint", "1e6"], "--glint 1e+06 m/s is above 30 m/s"),
+    (RUN + ["--glint", "1e6"], "--glint WIND_M_S 1e+06 m/s is above the 30 m/s"),
     (RUN + ["--glint", "-1"], "--glint WIND_M_S must be a finite wind speed >= 0"),
     (RUN + ["--glint", "nan"], "--glint WIND_M_S must be a finite wind speed >= 0"),
     (RUN + ["--attitude", "RUNS/att.csv", "--dynamics", "0.1,0.2,0.3"], "--attitude and --dynamics both set"),
@@ -243,7 +313,7 @@ BAD = [
     (["attitude-study", "--folder", "/proc/x"], "/proc/x"),
     (["attitude-study", "--page", "/proc/x"], "/proc/x"),
     # ---- earth-study
-    (["earth-study", "--wind", "100"], "--wind 100 m/s is above 30 m/s"),
+    (["earth-study", "--wind", "100"], "--wind 100 m/s is above the 30 m/s"),
     (["earth-study", "--wind", "-1"], "--wind"),
     (["earth-study", "--wind", "nan"], "--wind"),
     (["earth-study", "--cloud-seeds", "-1"], "--cloud-seeds must be a whole number"),
@@ -313,6 +383,91 @@ BAD = [
     (["summary", "--tle", "RUNS/tle.bin"], "tle.bin"),
     (["summary", "--tle", "RUNS/tle_empty.tle"], "tle_empty.tle"),
     (["summary", "--satellite", "ISS"], "no satellite 'ISS'"),
+    # ---- flight-check (issue 29): telemetry files, the run's inputs, modes, output folders
+    *[(FLIGHT + ["--pd", f"RUNS/{f}", "--attitude", GRAINS], words) for f, words in (
+        ("nope.csv", "--pd"), ("pd_empty.csv", "is empty"), ("pd.bin", "holds binary data"),
+        ("pd_header.csv", "no photodiode rows"), ("pd_cut.csv", "is the file truncated?"),
+        ("pd_2019.csv", "are they of the same days?"), ("att.csv", "header must start TIMESTAMP,PD3,PD6"))],
+    *[(FLIGHT + ["--pd", PD, "--attitude", f"RUNS/{f}"], words) for f, words in (
+        ("nope.csv", "not found"), ("grains_empty.csv", "is empty"), ("grains.bin", "holds binary data"),
+        ("grains_cut.csv", "is the file truncated?"), ("grains_header.csv", "truncated"),
+        ("abs.csv", "not a GRAINS export"))],
+    (FLIGHT + ["--pd", PD], "holds readings only; give its attitude history with --attitude"),
+    (FLIGHT + ["--attitude", GRAINS], "--attitude without --pd"),
+    (FLIGHT + ["--tle", "RUNS/nope.tle"], "not found"),
+    (FLIGHT + ["--tle", "RUNS/tle_empty.tle"], "is not a TLE file"),
+    (FLIGHT + ["--tle", "RUNS/tle.bin"], "holds binary data"),
+    (FLIGHT + ["--config", "RUNS/cfg_empty.toml"], "no diodes"),
+    (FLIGHT + ["--config", "RUNS/cfg_bad.toml"], "not valid TOML"),
+    (FLIGHT + ["--config", "RUNS/cfg.bin"], "cfg.bin"),
+    (FLIGHT + ["--map", "toms"], "did you mean toms2005"),
+    (FLIGHT + ["--map", "RUNS/map_nan.npz"], "map_nan.npz"),
+    (FLIGHT + ["--clouds", "-1"], "--clouds takes a cloud-weather seed"),
+    (FLIGHT + ["--seed", "-1"], "--seed must be a whole number"),
+    (FLIGHT + ["--plots", "/proc/plots"], "choose another --plots"),
+    (FLIGHT + ["--study", "/proc/study"], "choose another --study"),
+    (FLIGHT + ["--runs", "/proc/runs"], "choose another --runs"),
+    (FLIGHT + ["--plots", "RUNS/att.csv"], "is a file"),
+    (FLIGHT + ["--fit", "--pd", PD], "--fit calibrates on the shipped telemetry only"),
+    (FLIGHT + ["--fit", "--study", "s"], "--fit ignores --study"),
+    (FLIGHT + ["--study", "s", "--clouds", "1"], "--study ignores --clouds"),
+    (FLIGHT + ["--study", "s", "--page", "s"], "ignores --study"),
+    (FLIGHT + ["--page", "RUNS/nope"], "results.json not found; make it with"),
+    (FLIGHT + ["--page", "RUNS/page_bin"], "is not a results file"),
+    (FLIGHT + ["--page", "RUNS/page_json"], "is not a results file"),
+    (FLIGHT + ["--page", "RUNS/page_keys"], "is not a flight-check results file (no title"),
+    (FLIGHT + ["--page", "RUNS/page_npz"], "is not a readable samples file"),
+    (FLIGHT + ["--page", "/proc/page"], "choose another --page"),
+    (["flight-check", "opsat"], "did you mean 'opssat'"),
+    (["flight-check", "ISS"], "invalid choice: 'ISS' (choose from 'opssat')"),
+    # ---- export (issue 34)
+    (["export", "RUNS/nope.nc", "--format", "csv"], "no run file at"),
+    (["export", "RUNS/binary.nc", "--format", "csv"], "is not a readable netCDF run file"),
+    (["export", "RUNS/truncated.nc", "--format", "aem"], "is not a readable netCDF run file"),
+    (["export", "RUNS/folder.nc", "--format", "aem"], "is a folder, not a run file"),
+    (["export", "RUNS/zeroed.nc", "--format", "csv"], "does not match its checksum"),
+    (["export", "RUNS/good.nc", "--format", "cvs"], "did you mean 'csv'"),
+    (["export", "RUNS/good.nc"], "the following arguments are required: --format"),
+    (["export", "RUNS/good.nc", "--format", "oem"], "needs at least 8 states"),
+    (["export", "RUNS/good.nc", "--format", "csv", "-o", "/proc/x.csv"], "cannot write /proc/x.csv"),
+    (["export", "RUNS/good.nc", "--format", "csv", "-o", "no/such/x.csv"], "does not exist"),
+    (["export", "RUNS/good.nc", "--format", "csv", "-o", "RUNS/folder.nc"], "is a folder"),
+    (["export", "RUNS/good.nc", "--format", "csv", "--diode", "BPW3"], "--diode BPW3 is unknown"),
+    (["export", "RUNS/good.nc", "--format", "csv", "--seed", "-1"], "--seed must be a whole number"),
+    (["export", "RUNS/good.nc", "--format", "aem", "--noise"], "--format aem ignores them"),
+    (["export", "RUNS/no_t_s.nc", "--format", "basilisk"], "lacks t_s, which --format basilisk needs"),
+    (["export", "RUNS/no_diode_name.nc", "--format", "csv"], "lacks diode_name, which --format csv needs"),
+    (["export", "RUNS/no_e_sun.nc", "--format", "basilisk"], "lacks attribute e_sun_w_m2"),
+    # ---- run --times (issue 29)
+    *[(TIMES + [f"RUNS/{f}"], words) for f, words in (
+        ("nope.txt", "not found"), ("times_empty.txt", "no times found"), ("times.bin", "holds binary data"),
+        ("times_back.txt", "must increase strictly"), ("times_twice.txt", "must increase strictly"),
+        ("times_words.txt", ":2: cannot read 'yesterday' as an ISO-8601 UTC time"),
+        ("times_seconds.txt", ":1: cannot read '0' as an ISO-8601 UTC time"))],
+    (TIMES + ["RUNS/times.txt"] + START, "--times gives the epochs: leave out --start and --duration"),
+    (TIMES + ["RUNS/times.txt", "--duration", "10"], "--times gives the epochs"),
+    (TIMES + ["RUNS/times.txt", "--step", "10"], "--step 10 has no effect with --times"),
+    # ---- run --attitude histories (issues 29 and 34)
+    *[(["run", "--samples", "256", "256", "--attitude", f"RUNS/{f}"], words) for f, words in (
+        ("abs_short_row.csv", ":3: expected 5 values"), ("abs_word.csv", ":3: cannot read 'soon'"),
+        ("abs_norm.csv", "has norm 2, not 1"), ("abs_nan.csv", "is not finite"),
+        ("abs_back.csv", "attitude times must increase strictly"), ("abs_itrf.csv", "unknown attitude frame 'ITRF'"),
+        ("abs_sideways.csv", "unknown attitude direction 'sideways'"), ("aem_empty.aem", "is empty"),
+        ("aem_header.aem", "the AEM header lacks"), ("aem_cut.aem", ":18: data line with 2 numbers"))],
+    (RUN + ["--attitude", "RUNS/aem_cut.aem", "--attitude-frame", "GCRF"], "declares its frame and direction"),
+    (RUN + ["--attitude", "RUNS/abs.csv", "--attitude-frame", "GCFR"], "did you mean 'GCRF'"),
+    (RUN + ["--attitude", "RUNS/abs.csv", "--attitude-frame", "ITRF"], "(choose from 'GCRF', 'EME2000', 'TEME', 'TOD')"),
+    (RUN + ["--attitude", "RUNS/abs.csv", "--attitude-direction", "body2frame"], "did you mean 'body_to_frame'"),
+    (RUN + ["--attitude-frame", "TEME"], "--attitude-frame TEME declares the convention of an --attitude file"),
+    (RUN + ["--attitude-direction", "frame_to_body"], "--attitude-direction frame_to_body declares"),
+    # ---- run --eop, --orbit (issue 34; malformed OEMs: tests/test_ccsds_oem.py)
+    *[(RUN + ["--eop"] + v.split(), "UT1 - UTC stays within 0.9 s and the pole within 1 arcsec")
+      for v in ("nan 0 0", "0 inf 0", "5 0 0", "0.1 3 0", "0.1 0 -400")],
+    (RUN + ["--eop", "0.1", "0"], "expected 3 arguments"),
+    (RUN + ["--orbit", "RUNS/nope.oem"], "not found"),
+    (RUN + ["--orbit", "RUNS/att.bin"], "holds binary data"),
+    (RUN + ["--orbit", "RUNS/times.txt", "--tle", "RUNS/tle_one.tle"], "--orbit (an ephemeris) and --tle"),
+    (RUN + ["--orbit", "RUNS/times.txt", "--satellite", "ESTCUBE 1"], "--orbit (an ephemeris) and --tle"),
     # ---- any command: unknown command and option
     (["rnu"], "did you mean 'run'"),
     (["run", "--sed", "1"], "unrecognized arguments"),
@@ -353,6 +508,20 @@ def test_the_catalogue_fails_on_the_old_handling(runs, capsys, monkeypatch, trip
     monkeypatch.setitem(arguments._CHECKS, "run", leaves_a_file)
     with pytest.raises(AssertionError, match="leave nothing behind"):
         _refused(RUN + ["--seed", "-1"], "--seed", runs, capsys, monkeypatch)
+
+
+def test_the_flight_check_catalogue_fails_on_the_old_handling(runs, capsys, monkeypatch, tripwire):
+    """Without the flight-check's argument checks, an unwritable --plots folder is found only after the render
+    (work started); without the model inputs read first, a bad --tle leaves the runs folder behind."""
+    import simcore.pipeline.arguments as arguments
+    import simcore.pipeline.preflight as preflight
+    monkeypatch.setitem(arguments._CHECKS, "flight-check", lambda args: None)
+    with pytest.raises(AssertionError, match="work started"):
+        _refused(FLIGHT + ["--plots", "/proc/plots"], "--plots", runs, capsys, monkeypatch)
+    monkeypatch.undo()                       # the tripwire's predict gone too: predict makes its folder first
+    monkeypatch.setattr(preflight, "check_model_inputs", lambda *a, **k: None)
+    with pytest.raises(AssertionError, match="leave nothing behind"):
+        _refused(FLIGHT + ["--tle", "RUNS/tle.bin"], "tle.bin", runs, capsys, monkeypatch)
 
 
 def test_an_old_run_file_without_checksums_is_used_with_a_note(runs, tmp_path, capsys):

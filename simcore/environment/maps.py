@@ -293,7 +293,7 @@ def named_map(name):
             raise InputNotFoundError(f"reflectivity map file {name} not found; give an existing .npz file or one "
                                      f"of {', '.join(MAP_NAMES)}")
         try:
-            with np.load(name) as z:
+            with open(name, "rb") as fh, np.load(fh) as z:     # closed also where numpy refuses the file
                 arrays = {k: z[k] for k in z.files}
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise InvalidInputError(f"{name} is not a readable .npz map ({exc}); save the map as "

@@ -58,6 +58,13 @@ def _run(args):
     if getattr(args, "accuracy_given", False) and args.samples:
         raise InvalidInputError("--accuracy and --samples both set the sample counts (a target accuracy, or fixed "
                                 "counts); give one of them")
+    if getattr(args, "times", None) and getattr(args, "step_given", False):
+        raise InvalidInputError(f"--step {args.step:g} has no effect with --times {args.times} (the file gives the "
+                                "epochs); drop --step")
+    for option in ("attitude_frame", "attitude_direction"):
+        if getattr(args, option, None) and not args.attitude:
+            raise InvalidInputError(f"--{option.replace('_', '-')} {getattr(args, option)} declares the convention of "
+                                    "an --attitude file, and none is given; add --attitude FILE or drop it")
     if args.dynamics:
         from simcore.environment.dynamics import parse_inertia
         parse_inertia(args.dynamics)
@@ -152,7 +159,41 @@ def _spectral_check(args):
         preflight.check_wave_resources("--samples", args.samples, args.epochs, len(NORMALS_LOCAL))
 
 
-_CHECKS = {"run": _run, "summary": _spin_rate, "view": _view, "estimate": _estimate, "sweep": _sweep,
+def _flight_check(args):
+    """--page writes the page from DIR/results.json alone, --fit calibrates on the shipped telemetry, --study
+    renders its own list of maps: an option the mode would ignore is refused; the seed and every output folder
+    are checked."""
+    given = [o for o, v in (("--fit", args.fit), ("--study", args.study), ("--pd", args.pd),
+                            ("--attitude", args.attitude), ("--tle", args.tle), ("--config", args.config),
+                            ("--plots", args.plots), ("--json", args.json), ("--clouds", args.clouds is not None))
+             if v]
+    if args.page and given:
+        raise InvalidInputError(f"--page writes the page from {args.page}/results.json only and ignores "
+                                f"{', '.join(given)}; make the results with --study first, then run --page alone")
+    for mode, ignored in (("--fit", ("--study", "--plots", "--clouds")), ("--study", ("--plots", "--clouds"))):
+        extra = [o for o in ignored if o in given]
+        if mode in given and extra:
+            raise InvalidInputError(f"{mode} ignores {', '.join(extra)}; drop {'it' if len(extra) == 1 else 'them'} "
+                                    f"or run {mode} as a command of its own")
+    preflight.check_seed(args.seed)
+    for option in ("plots", "study", "page"):
+        if getattr(args, option):
+            preflight.check_output_folder(getattr(args, option), f"--{option}")
+    if not args.page:
+        preflight.check_output_folder(args.runs, "--runs")
+
+
+def _export(args):
+    """The sensor chain's options only shape the csv format's readings: refused with another format."""
+    preflight.check_seed(args.seed)
+    chain = [o for o, v in (("--diode", args.diode != "BPW34FS"), ("--noise", args.noise), ("--seed", args.seed != 0))
+             if v]
+    if args.format != "csv" and chain:
+        raise InvalidInputError(f"{', '.join(chain)} shape the sensor chain's readings of --format csv only; "
+                                f"--format {args.format} ignores them: drop them")
+
+
+_CHECKS = {"flight-check": _flight_check, "export": _export, "run": _run, "summary": _spin_rate, "view": _view, "estimate": _estimate, "sweep": _sweep,
            "attitude-study": _attitude_study, "earth-study": _earth_study, "reproduce": _reproduce,
            "coverage": _coverage,
            "response": _response, "spectral-check": _spectral_check}

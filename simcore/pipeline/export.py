@@ -30,6 +30,7 @@ that the renderer traced, which is the point of replaying them.
 """
 import csv
 import os
+import sys
 
 import numpy as np
 
@@ -41,6 +42,21 @@ from simcore.pipeline.store import atomic_write, check_writable
 
 FORMATS = ("csv", "aem", "oem", "basilisk")
 SUFFIX = {"csv": "_readings.csv", "aem": ".aem", "oem": ".oem", "basilisk": "_basilisk.csv"}
+
+
+# what a format reads beyond open_run's REQUIRED_VARIABLES: (variables, attributes)
+NEEDS = {"csv": (("time", "t_s", "diode_name"), ()), "aem": (("time", "diode_name"), ()),
+         "oem": (("time", "diode_name"), ()), "basilisk": (("time", "t_s", "diode_name"), ("e_sun_w_m2",))}
+
+
+def check_contents(ds, run_path, fmt):
+    """Raise InvalidInputError if the run Dataset ``ds`` lacks a variable or attribute that ``fmt`` writes (a file
+    edited after sunsim wrote it, or written by an older sunsim without checksums to tell)."""
+    variables, attrs = NEEDS[fmt]
+    missing = [v for v in variables if v not in ds.variables] + [f"attribute {a}" for a in attrs if a not in ds.attrs]
+    if missing:
+        raise InvalidInputError(f"{run_path} lacks {', '.join(missing)}, which --format {fmt} needs; export a run "
+                                "file as 'sunsim run' writes it (render it again)")
 
 
 def default_output(run_path, fmt):
@@ -139,7 +155,11 @@ def export(run_path, fmt, output=None, *, diode="BPW34FS", noise=False, seed=0):
     return the path. Every input is checked before anything is written."""
     if fmt not in FORMATS:
         raise InvalidInputError(f"--format {fmt} is unknown; use one of {', '.join(FORMATS)}")
-    ds = open_run(run_path)
+    notes = []                              # an older file's note printed only if the file is then used
+    ds = open_run(run_path, note=notes.append)
+    check_contents(ds, run_path, fmt)
+    for line in notes:
+        print(line, file=sys.stderr)
     path = output or default_output(os.fspath(run_path), fmt)
     check_writable(path)
     head = [f"sunsim export of {os.path.abspath(run_path)} ({ds.attrs.get('configuration', '')}, "

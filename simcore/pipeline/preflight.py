@@ -114,6 +114,26 @@ def check_clouds(opts):
     check_cloud_options(opts.reflectivity, clouds, scale_km)
 
 
+def check_model_inputs(config, tle, map_name, clouds=None):
+    """Read the scene ``config``, the TLE file ``tle`` and the reflectivity map ``map_name`` (with its cloud
+    weather seed ``clouds``) as a run would; raise the readers' one-line UserError for the first that is wrong.
+    For the commands that read other inputs (telemetry) and make folders before their runs start: the run's own
+    checks (:func:`simcore.pipeline.run.prepare`) then only repeat what has passed here."""
+    from scenes.config import SatelliteConfig
+    from simcore.environment.orbit import Orbit
+    from simcore.radiometry import band
+    config = SatelliteConfig.load(config)
+    Orbit.from_file(tle)
+    check_band(map_name)
+    name = map_for_diodes(map_name, config)
+    if clouds is None:
+        check_map(band.resolve_map(name, None))
+    else:
+        from simcore.environment.clouds import check_cloud_options
+        check_cloud_options(name, clouds, None)
+    return config
+
+
 def check_variant(variant):
     """Return the Mitsuba variant a run will use; raise InvalidInputError if ``variant`` cannot run here."""
     from simcore.render import irradiance as render
@@ -169,9 +189,7 @@ def map_for_diodes(map_name, config):
     return f"{map_name}:{declared}"
 
 # ---- seeds, rates, winds: the limits every command shares --------------------------------------------------------
-# Cox & Munk's fit (1954) spans winds of about 1-14 m/s; above ~30 m/s (hurricane force, Beaufort 11-12) the sea is
-# foam and spray, which no mean-square-slope model describes: such a --glint is a typo or a unit (km/h, knots) mix-up.
-WIND_MAX_M_S = 30.0
+# The winds: simcore.radiometry.glint.MAX_WIND_M_S (check_glint below).
 # The fastest spin a CubeSat is designed for: ESTCube-1 was to spin up to one turn a second (360 deg/s) to deploy
 # its electric-sail tether (Slavinskis et al. 2015). Faster rates are a unit mistake (rpm, rad/s given as deg/s...).
 SPIN_MAX_DEG_S = 360.0
@@ -191,23 +209,11 @@ def check_seeds(values, option):
         check_seed(v, option)
 
 
-def check_glint(wind_m_s, option="--glint"):
-    """Return the wind speed (m/s) of a sea glint option, or raise InvalidInputError: negative, not finite, or above
-    WIND_MAX_M_S, where Cox & Munk's model of the sea surface no longer applies."""
+def check_glint(wind_m_s, option="--glint WIND_M_S"):
+    """Return the wind speed (m/s) of a sea glint option, or raise InvalidInputError naming ``option``: negative, not
+    finite, or above the limit of :func:`simcore.radiometry.glint.check_wind` (one place for the rule)."""
     from simcore.radiometry.glint import check_wind
-    if option != "--glint":
-        try:
-            ok = math.isfinite(float(wind_m_s)) and float(wind_m_s) >= 0
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise InvalidInputError(f"{option} must be a finite wind speed >= 0 m/s (e.g. 7), got {wind_m_s}")
-    w = check_wind(wind_m_s)
-    if w > WIND_MAX_M_S:
-        raise InvalidInputError(f"{option} {wind_m_s:g} m/s is above {WIND_MAX_M_S:g} m/s (hurricane force: the sea is "
-                                "foam and spray, outside Cox & Munk's fit of about 1-14 m/s); give the wind at 12.5 m "
-                                "in m/s, e.g. 7")
-    return w
+    return check_wind(wind_m_s, option)
 
 
 def check_spin_rate(rate_deg_s, option="--spin-rate"):

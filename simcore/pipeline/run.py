@@ -859,8 +859,8 @@ REQUIRED_VARIABLES = ("irradiance", "irradiance_se", "analytic", "analytic_refer
                       "sun_dir_body", "sun_scale", "normal_body", "dead", "illumination", "q_gcrs_from_body", "valid")
 
 
-def open_run(path):
-    """Return the Dataset of a finished run file, or raise ValueError saying why it is not one."""
+def open_run(path, note=None):
+    """Return the Dataset of a finished run file, or raise a UserError saying why not (note: verify_checksums's)."""
     if not os.path.exists(path):
         raise InputNotFoundError(f"no run file at {path}")
     if os.path.isdir(path):
@@ -875,7 +875,7 @@ def open_run(path):
     if ds.attrs.get("title") != "sunsim diode irradiance run" or missing:
         raise InvalidInputError(f"{path} is not a sunsim run file (missing {', '.join(missing) or 'its sunsim title'}); "
                          "give a file written by 'sunsim run'")
-    return verify_checksums(ds, path)
+    return verify_checksums(ds, path, note)
 
 
 def check_run(ds):

@@ -68,6 +68,8 @@ def _paths(args):
         if not os.path.isfile(path):
             from simcore.errors import InputNotFoundError
             raise InputNotFoundError(f"{what} {path} not found; give an existing file")
+    from simcore.pipeline.preflight import check_model_inputs
+    check_model_inputs(scene, tle, args.map, args.clouds)      # before the telemetry is read or a folder made
     return sat, pd, attitude, tle, scene
 
 

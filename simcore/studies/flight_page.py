@@ -19,6 +19,7 @@ import datetime as _dt
 import json
 import os
 from pathlib import Path
+import zipfile
 
 import numpy as np
 
@@ -499,19 +500,31 @@ def _pd6_words(results, V):
     return " ".join(words)
 
 
+# the top-level entries of results.json that the page reads (written by run_study)
+RESULTS_KEYS = ("title", "commands", "inputs", "models", "best", "checks", "uncertainty", "pd6")
+
+
 def write_page(folder):
     """Write ``folder/README.md`` and the figures from ``folder/results.json`` and ``folder/samples.npz``."""
     path = Path(folder) / "results.json"
     if not path.is_file():
         raise InputNotFoundError(f"{path} not found; make it with `sunsim flight-check opssat --study {folder}`")
+    redo = f"make it again with `sunsim flight-check opssat --study {folder}`"
     try:
         results = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise InvalidInputError(f"{path} is not a results file ({exc})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InvalidInputError(f"{path} is not a results file ({exc}); {redo}") from None
+    missing = [k for k in RESULTS_KEYS if k not in results] if isinstance(results, dict) else list(RESULTS_KEYS)
+    if missing:
+        raise InvalidInputError(f"{path} is not a flight-check results file (no {', '.join(missing)}); {redo}")
     npz = Path(folder) / "samples.npz"
     if npz.is_file():
-        with np.load(npz) as z:
-            arrays = {k: z[k] for k in z.files}
+        try:
+            with open(npz, "rb") as fh, np.load(fh) as z:      # the file closed also where numpy refuses it
+                arrays = {k: z[k] for k in z.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise InvalidInputError(f"{npz} is not a readable samples file ({type(exc).__name__}: {exc}); "
+                                    f"{redo}") from None
         comparison_figures(arrays, list(results["models"]), folder,
                            model_key="ceres2018-all" if f"{next(iter(results['models']))}/ceres2018-all" in arrays
                            else "ceres2018-all")
