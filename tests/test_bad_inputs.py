@@ -454,6 +454,7 @@ BAD = [
         ("abs_back.csv", "attitude times must increase strictly"), ("abs_itrf.csv", "unknown attitude frame 'ITRF'"),
         ("abs_sideways.csv", "unknown attitude direction 'sideways'"), ("aem_empty.aem", "is empty"),
         ("aem_header.aem", "the AEM header lacks"), ("aem_cut.aem", ":18: data line with 2 numbers"))],
+    (["run", "--attitude", "RUNS/abs.csv", "--step", "5"], "--step 5 has no effect: without --start or --duration"),
     (RUN + ["--attitude", "RUNS/aem_cut.aem", "--attitude-frame", "GCRF"], "declares its frame and direction"),
     (RUN + ["--attitude", "RUNS/abs.csv", "--attitude-frame", "GCFR"], "did you mean 'GCRF'"),
     (RUN + ["--attitude", "RUNS/abs.csv", "--attitude-frame", "ITRF"], "(choose from 'GCRF', 'EME2000', 'TEME', 'TOD')"),

@@ -61,6 +61,13 @@ def _run(args):
     if getattr(args, "times", None) and getattr(args, "step_given", False):
         raise InvalidInputError(f"--step {args.step:g} has no effect with --times {args.times} (the file gives the "
                                 "epochs); drop --step")
+    if (args.attitude and getattr(args, "step_given", False) and args.start is None and args.duration is None
+            and not getattr(args, "times", None)):
+        from simcore.pipeline.schedule import relative_times_csv
+        if not relative_times_csv(args.attitude):
+            raise InvalidInputError(f"--step {args.step:g} has no effect: without --start or --duration the run renders "
+                                    f"at the attitude history's own samples ({args.attitude}); drop --step, or give "
+                                    "--start/--duration for a regular grid at that step")
     for option in ("attitude_frame", "attitude_direction"):
         if getattr(args, option, None) and not args.attitude:
             raise InvalidInputError(f"--{option.replace('_', '-')} {getattr(args, option)} declares the convention of "
