@@ -214,7 +214,8 @@ def test_reproduce_refuses_failed_checks_then_marks_them(tiny_study, capsys):
     path = folder / "runs" / "tilt20_fov75_short_spin1.9_toms2005.nc"
     ds = xr.load_dataset(path, engine="h5netcdf")
     ds["irradiance"][..., 1] = ds["irradiance"][..., 1] * 1.05
-    ds.to_netcdf(path, engine="h5netcdf")
+    from simcore.pipeline.runfile import add_checksums       # a run whose check fails, not a damaged file
+    add_checksums(ds).to_netcdf(path, engine="h5netcdf")
     for f in (folder / "page").iterdir():
         f.unlink()
     (folder / "page").rmdir()

@@ -96,7 +96,8 @@ def clear_sky_partner(map_name):
         f"--map {' or '.join(CLOUD_PAIRS)} or {BAND_ALL_SKY}[:DIODE]")
 
 
-def _check_seed(seed, option="--clouds"):
+def check_cloud_seed(seed, option="--clouds"):
+    """Raise InvalidInputError unless ``seed`` is a cloud-weather seed (a whole number 0 .. 2^64-1)."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) <= MAX_SEED:
         raise InvalidInputError(f"{option} takes a cloud-weather seed, a whole number from 0 to 2^64-1, got {seed}")
 
@@ -105,7 +106,7 @@ def check_cloud_options(map_name, seed, scale_km=None, seed_option="--clouds"):
     """Raise InvalidInputError unless ``seed`` (0 .. 2^64-1), ``scale_km`` (None: the default, or
     200..5000 km) and the map ``map_name`` can make cloud weather; ``seed_option`` names the seed's option in
     the message."""
-    _check_seed(seed, seed_option)
+    check_cloud_seed(seed, seed_option)
     if scale_km is not None:
         lo, hi = SCALE_RANGE_KM
         try:
@@ -225,7 +226,7 @@ class CloudWeather:
         return legendre.legval(x, (2 * ell + 1) * cl) / np.sum((2 * ell + 1) * cl)
 
     def _rng(self, seed):
-        _check_seed(seed)
+        check_cloud_seed(seed)
         return np.random.default_rng(np.random.SeedSequence([int(seed), _STREAM]))
 
     def field_healpix(self, seed):

@@ -110,7 +110,10 @@ def _estimate(args):
 def _sweep(args):
     preflight.check_workers(args.workers, args.scheduler)
     preflight.check_seeds(args.seeds, "--seeds")
-    preflight.check_seeds(args.clouds, "--clouds")
+    if args.clouds is not None:                 # the same words as run's --clouds (one rule: environment.clouds)
+        from simcore.environment.clouds import check_cloud_seed
+        for seed in args.clouds:
+            check_cloud_seed(seed)
     preflight.check_output_folder(args.folder, "--folder")
     for rate in args.spin_rates:
         preflight.check_spin_rate(rate, "--spin-rates")
