@@ -1,7 +1,8 @@
 """The pair-wise direct-Sun reference against the code it replaced, number for number.
 
-``_direct_response`` (simcore/radiometry/analytic.py) used to evaluate every diode at every epoch over
-the 37-point solar disc, refine whole epochs to 397 points and call ``direct_visibility`` on the whole
+``_direct_response`` (simcore/radiometry/analytic_direct.py; it was in analytic.py) used to evaluate every diode
+at every epoch over the 37-point solar disc, refine whole epochs to 397 points and call ``direct_visibility`` on
+the whole
 (epoch, diode) grid. It now works on (epoch, diode) pairs: only those with part of the disc in front
 of the diode, the 397-point average only where a kink crosses the disc, the body box on pairs, and
 ``diode_irradiance`` skips the epochs in the Earth's umbra. None of that may change a number: the
@@ -19,8 +20,8 @@ import pytest
 from scenes.config import SatelliteConfig
 from simcore.constants import R_EARTH_MEAN_M, R_SUN_M, AU_M
 from simcore.radiometry import response as _resp
-from simcore.radiometry.analytic import (BodyBox, _direct_response, disc_directions, diode_irradiance,
-                                         solar_disc_offsets)
+from simcore.radiometry.analytic import BodyBox, diode_irradiance
+from simcore.radiometry.analytic_direct import _direct_response, disc_directions, solar_disc_offsets
 from simcore.radiometry.response import CosineResponse, Eq415Response, ReflectionResponse
 from simcore.shapes.aperture import lit_rectangle
 from simcore.shapes.occlusion import lit_fractions_with_box

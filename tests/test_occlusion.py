@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from scenes.config import SatelliteConfig, panel_axes
-from simcore.radiometry.analytic import solar_disc_offsets
+from simcore.radiometry.analytic_direct import solar_disc_offsets
 from simcore.shapes.occlusion import box_hit, direct_visibility, lit_fraction_with_box
 
 

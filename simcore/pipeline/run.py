@@ -25,7 +25,8 @@ import xarray as xr
 
 from scenes.config import SatelliteConfig, body_side_normal
 from scenes.meshes import build_parts, build_satellite_mesh
-from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
+from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance
+from simcore.radiometry.analytic_direct import disc_directions
 from simcore.radiometry.glint import SunGlint, check_refine as glint_check_refine
 from simcore.shapes.aperture import CircularWell
 from simcore.shapes.occlusion import box_hit
