@@ -285,7 +285,7 @@ def cmd_response(args):
 def cmd_view(args):
     """Render the annotated scene picture: the CubeSat at one epoch, over the Earth coloured by its reflectivity."""
     from scenes.config import SatelliteConfig
-    from scenes.view import view_epoch, view_picture
+    from simcore.picture.view import view_epoch, view_picture
     from simcore.environment.epochs import Epochs
     from simcore.pipeline.store import check_writable
     from simcore.radiometry import band

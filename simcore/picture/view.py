@@ -24,8 +24,8 @@ import numpy as np
 
 from scenes.config import SatelliteConfig
 from scenes.meshes import diode_surfaces
-from scenes.mitsuba_scene import (_REFLECTANCE, Camera, PictureGeometry, build_scene, load_scene, render_passes,
-                                  srgb8)
+from simcore.picture.scene import (_REFLECTANCE, Camera, PictureGeometry, build_scene, load_scene,
+                                   render_passes, srgb8)
 from simcore.constants import R_EARTH_MEAN_M
 from simcore.environment.coastlines import coastlines_deg, lonlat_to_ecef_m
 from simcore.environment.maps import named_map
