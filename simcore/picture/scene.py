@@ -13,9 +13,9 @@ values (some exceed 1 over ice, never clamped), nearest filtering. The Sun is a
 ``directional`` emitter whose ``direction`` is the propagation direction, minus the Sun vector.
 
 :class:`Camera` is the pinhole camera handed to Mitsuba and its inverse, the projection that
-places annotations (``scenes.view``). :func:`picture` writes the plain radiometric picture (mono),
+places annotations (``simcore.picture.view``). :func:`picture` writes the plain radiometric picture (mono),
 tone-mapped and tinted with a per-shape false colour; the annotated picture an engineer checks is
-``scenes.view.view_picture`` (``sunsim view``).
+``simcore.picture.view.view_picture`` (``sunsim view``).
 """
 from __future__ import annotations
 
@@ -338,7 +338,7 @@ def picture(config, path_png, epoch_geometry=None, spp=64, resolution=(960, 540)
     ``camera_distance_m`` from the satellite centre, ``fov_deg`` horizontal; ``exposure`` scales the
     display image only (1: a white plate facing the Sun is just white). ``Picture.radiance`` is
     the rendered radiance in units of E_sun / pi (the Sun's irradiance is pi). The annotated view
-    an engineer checks is :func:`scenes.view.view_picture`.
+    an engineer checks is :func:`simcore.picture.view.view_picture`.
     """
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
