@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = next(p for p in Path(__file__).resolve().parents if (p / "pyproject.toml").is_file())
 LINT = Path(sys.executable).with_name("lint-imports")
 CONFIG = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
 CONTRACTS = [c["name"] for c in CONFIG["contracts"]]
@@ -64,7 +64,7 @@ def test_every_part_of_simcore_has_its_layer():
     ("simcore/radiometry/analytic.py", "import simcore.picture.view", {STAGES}),  # the check importing the picture
     ("estimators/sunline.py", "import mitsuba", {RAY_TRACER}),
     ("estimators/attitude.py", "import drjit as dr", {RAY_TRACER}),
-    ("simcore/render/irradiance.py", "from simcore.radiometry.analytic import diode_irradiance", {RENDERER}),
+    ("simcore/render/__init__.py", "from simcore.radiometry.analytic import diode_irradiance", {RENDERER}),
     ("simcore/data/band/build_band_data.py", "from simcore.pipeline import run", {STAGES}),
     ("benchmarks/bench_run.py", "from simcore.cli import main", {BENCHMARKS}),
     # the rest of the layers and the other contracts
