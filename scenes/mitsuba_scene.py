@@ -239,8 +239,8 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
         rmap = earth.map
     else:
         rmap = named_map("toms2005") if reflectivity_map is None else reflectivity_map
-    if isinstance(config, Satellite):
-        config = config.config
+    parts = (config.display_parts if isinstance(config, Satellite)
+             else build_parts(config, include_diodes=True))
     scene = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": int(max_depth)},
@@ -261,7 +261,7 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
         }
         names.append("earth")
         kinds.append("earth")
-    for name, tm in build_parts(config, include_diodes=True).items():
+    for name, tm in parts.items():
         kind = name.split("_")[0]
         scene[name] = _mesh(mi, name, tm, _REFLECTANCE.get(kind, _REFLECTANCE["body"]))
         names.append(name)

@@ -145,12 +145,18 @@ class Satellite:
         return build_satellite_mesh(self.config, self.parts)
 
     @cached_property
+    def display_parts(self):
+        """The picture's parts by name: the occluding parts and each diode's surface (``build_parts(...,
+        include_diodes=True)``)."""
+        return build_parts(self.config, include_diodes=True)
+
+    @cached_property
     def body_box(self):
         """The body as the analytic model's occluding box (:meth:`BodyBox.from_config`), None without a body."""
         return BodyBox.from_config(self.config)
 
     def display_scene(self, epoch_geometry=None, **kwargs):
         """Return the picture's Mitsuba scene of this satellite (:func:`scenes.mitsuba_scene.build_scene`: the
-        scene dict, shape ids, their part kinds and the camera)."""
+        scene dict, shape ids, their part kinds and the camera), its parts built once (:attr:`display_parts`)."""
         from scenes.mitsuba_scene import build_scene
-        return build_scene(self.config, epoch_geometry, **kwargs)
+        return build_scene(self, epoch_geometry, **kwargs)

@@ -66,6 +66,7 @@ def test_display_scene_takes_the_satellite_and_an_earth(sat):
     scene, names, kinds, _ = sat.display_scene(resolution=(4, 4), spp=1, earth=Earth(m))
     assert scene["earth"]["radius"] == 6.3e6
     assert {f"diode_{k}" for k in range(14)} <= set(names) and "body" in kinds
+    assert sat.display_parts is sat.display_parts and set(names) == {"earth"} | set(sat.display_parts)
     with pytest.raises(ValueError, match="not both"):
         sat.display_scene(resolution=(4, 4), spp=1, earth=Earth(m), reflectivity_map=m)
 

@@ -653,11 +653,13 @@ def response_coverage(config, *, dead=(0,), level=0.01, nside=16):
     """Return the coverage fractions {'red', 'yellow', 'green'} counting, per HEALPix direction, the live
     diodes whose real response (the well's overlap x the body box's visibility, black walls) reaches
     ``level`` of normal incidence, instead of the nominal FOV cone of
-    :func:`simcore.studies.coverage.coverage_fractions` (thesis sec. 3.2.4)."""
-    cfg = _as_config(config)
+    :func:`simcore.studies.coverage.coverage_fractions` (thesis sec. 3.2.4). ``config``: a name, a
+    ``SatelliteConfig`` or a :class:`scenes.satellite.Satellite`."""
+    sat = config if isinstance(config, Satellite) else Satellite(_as_config(config))
+    cfg = sat.config
     d = pixel_directions(nside)
     resp = np.stack([a.response(d @ f.T) for a, f in zip(cfg.apertures, cfg.frames)], axis=1)
-    box = Satellite(cfg).body_box
+    box = sat.body_box
     vis = direct_visibility(cfg.apertures, cfg.frames, box.positions_m, box.panel_normals, d, box.half_m)
     resp = np.where(resp > 0, resp * np.nan_to_num(vis, nan=0.0), 0.0)      # NaN: the well itself is dark
     live = ~np.asarray(cfg.dead, bool)
@@ -711,9 +713,10 @@ def sweep_apertures(heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.0, 30.0), fo
                                                                   / 2 / ap.height_m))),
                     "mount_height_mm": float(cfg.mount_heights_m().max() / MM), "feasible": True, "reason": ""})
         row.update(coverage_fractions(cfg, dead=dead))
-        row["green_response"] = response_coverage(cfg, dead=dead)["green"]
+        sat = Satellite(cfg)
+        row["green_response"] = response_coverage(sat, dead=dead)["green"]
         irr = diode_irradiance(g.r_sat_ecef_m, g.r_sun_ecef_m, g.R_ecef_from_body, cfg.frames, list(cfg.apertures),
-                               body=Satellite(cfg).body_box)
+                               body=sat.body_box)
         live = np.ones(cfg.n_diodes, bool)
         live[list(dead)] = False
         alb = irr.albedo_w_m2[lit_epochs][:, live].sum()
