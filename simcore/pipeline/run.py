@@ -186,9 +186,10 @@ class PreparedRun:
             sea = np.where(self.clouds.overcast(self.opts.clouds), 0.0, sea)
         return SunGlint(wind, sea=sea)
 
-    @functools.cached_property
+    @property
     def earth(self):
-        """Return the run's :class:`Earth`: its map with the sea's glint (:meth:`_sea_glint`)."""
+        """Return the run's :class:`Earth`: its map with the sea's glint (:meth:`_sea_glint`); made on each use
+        (cheap), so that it always holds the run's current ``map``."""
         return Earth(self.map, self.glint)
 
     @functools.cached_property
