@@ -2,7 +2,8 @@
 
 :class:`Satellite` wraps a :class:`scenes.config.SatelliteConfig` and gives the renderer's diode surfaces
 (:class:`DiodeSurfaces`), its occluder mesh (:func:`scenes.meshes.build_satellite_mesh`), the analytic
-model's body box (:class:`BodyBox`) and the picture's Mitsuba scene (:meth:`Satellite.display_scene`).
+model's body box (:class:`BodyBox`) and the picture's parts (the picture layer, :func:`simcore.picture.scene.build_scene`,
+makes the Mitsuba scene from a Satellite).
 The two plain data classes live here, below the renderer and the analytic model that use them.
 """
 from __future__ import annotations
@@ -114,7 +115,7 @@ class BodyBox:
 class Satellite:
     """A satellite configuration with its views, each built on first use and kept: ``diodes``
     (:class:`DiodeSurfaces`), ``parts`` (:func:`scenes.meshes.build_parts`), ``mesh`` (the occluder mesh of
-    those parts), ``body_box`` (:class:`BodyBox`, None without a body) and :meth:`display_scene`."""
+    those parts), ``body_box`` (:class:`BodyBox`, None without a body) and ``display_parts`` (the picture's parts)."""
 
     def __init__(self, config):
         if not isinstance(config, SatelliteConfig):
@@ -154,9 +155,3 @@ class Satellite:
     def body_box(self):
         """The body as the analytic model's occluding box (:meth:`BodyBox.from_config`), None without a body."""
         return BodyBox.from_config(self.config)
-
-    def display_scene(self, epoch_geometry=None, **kwargs):
-        """Return the picture's Mitsuba scene of this satellite (:func:`scenes.mitsuba_scene.build_scene`: the
-        scene dict, shape ids, their part kinds and the camera), its parts built once (:attr:`display_parts`)."""
-        from scenes.mitsuba_scene import build_scene
-        return build_scene(self, epoch_geometry, **kwargs)

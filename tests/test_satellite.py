@@ -9,6 +9,7 @@ from simcore.constants import R_EARTH_MEAN_M
 from simcore.environment.earth import Earth
 from simcore.environment.maps import ReflectivityMap
 from simcore.radiometry.glint import SunGlint
+from simcore.picture.scene import build_scene
 
 
 @pytest.fixture(scope="module")
@@ -61,14 +62,14 @@ def test_mesh_holds_every_part_once(sat):
         Satellite("tilt20_fov70")
 
 
-def test_display_scene_takes_the_satellite_and_an_earth(sat):
+def test_picture_scene_takes_the_satellite_and_an_earth(sat):
     m = ReflectivityMap.from_array(np.full((18, 36), 0.25), radius_m=6.3e6)
-    scene, names, kinds, _ = sat.display_scene(resolution=(4, 4), spp=1, earth=Earth(m))
+    scene, names, kinds, _ = build_scene(sat, resolution=(4, 4), spp=1, earth=Earth(m))
     assert scene["earth"]["radius"] == 6.3e6
     assert {f"diode_{k}" for k in range(14)} <= set(names) and "body" in kinds
     assert sat.display_parts is sat.display_parts and set(names) == {"earth"} | set(sat.display_parts)
     with pytest.raises(ValueError, match="not both"):
-        sat.display_scene(resolution=(4, 4), spp=1, earth=Earth(m), reflectivity_map=m)
+        build_scene(sat, resolution=(4, 4), spp=1, earth=Earth(m), reflectivity_map=m)
 
 
 def _rotations(n, seed):
