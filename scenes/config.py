@@ -16,6 +16,8 @@ convex prism) carries the assembly down to the panel; the diode centre is
 lifted along the panel normal just enough that the lowest corner of the floor
 sits ``base_mm`` above the panel. The total height of the mount above the
 panel must fit in the launch pod's clearance (9 mm for NUTS, thesis sec. 4.2.1).
+Extra parts (``[[part]]``) are built by :mod:`scenes.parts`, the small rules of a declaration (keys, lengths
+in mm, normals) are :mod:`scenes.declared`'s.
 """
 from __future__ import annotations
 
@@ -31,12 +33,12 @@ from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
 from simcore.shapes.window import INDEX_RANGE, Window
 from simcore.errors import InvalidInputError
-from scenes.declared import ConfigError, body_none as _flag, diode_type, unit_normal
+from scenes.declared import MM, ConfigError, body_none as _flag, check_keys, diode_type, unit_normal, vector3
 from scenes.materials import DEFAULT as DEFAULT_MATERIAL, check_material
+from scenes.parts import build_part, validate_parts
 from scenes.sanity import check_scene
 
 CONFIG_DIR = Path(__file__).resolve().parent
-MM = 1e-3
 
 # Body defaults: a 2U CubeSat envelope (CubeSat Design Specification rev. 14:
 # 100 x 100 x 227 mm, 8.5 mm square rails) and the NUTS launch-pod clearance
@@ -54,12 +56,6 @@ WELL_KEYS = ("height_mm", "opening_mm", "chamfer_mm", "chamfer_deg", "shape", "d
 ROUND_WELL_KEYS = ("shape", "height_mm", "diameter_mm")
 WELL_REQUIRED = ("height_mm", "opening_mm")
 TOP_KEYS = ("name", "description", "dead", "body", "mount", "layout", "diode", "part", "diode_type")
-PART_KEYS = ("name", "file", "unit", "box_mm", "translate_mm", "rotate_deg", "hinge", "material")
-HINGE_KEYS = ("axis", "point_mm", "angle_deg")
-UNITS = {"mm": 1e-3, "m": 1.0}
-# A part whose largest extent lies outside this range (metres, after its unit) is a unit mistake more often
-# than a spacecraft: the smallest CubeSat appendages are millimetres, the largest deployed arrays ~20 m.
-PART_EXTENT_RANGE_M = (1e-3, 20.0)
 PATTERNS = ("faces6", "thesis14")
 TILT_RANGE_DEG = (0.0, 45.0)
 PANELS = ("+x", "+y", "-x", "-y", "+z", "-z")
@@ -75,21 +71,12 @@ def list_configs():
     return sorted(p.stem for p in CONFIG_DIR.glob("*.toml"))
 
 
-def _check_keys(table, allowed, where):
-    unknown = [k for k in table if k not in allowed]
-    if unknown:
-        hints = []
-        for k in unknown:
-            close = difflib.get_close_matches(k, allowed, n=2, cutoff=0.5)
-            hints.append(f"{k!r}" + (f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""))
-        raise ConfigError(f"unknown key(s) in {where}: {', '.join(hints)}; allowed keys are {', '.join(allowed)}")
-
 
 def _merged(table, defaults, where):
     table = {} if table is None else table
     if not isinstance(table, dict):
         raise ConfigError(f"[{where}] must be a table, got {table!r}")
-    _check_keys(table, tuple(defaults), f"[{where}]")
+    check_keys(table, tuple(defaults), f"[{where}]")
     return {**defaults, **table}
 
 
@@ -154,175 +141,6 @@ class Body:
         # the rails run the full length of the side panels, so only the top/bottom lose them along a
         half_a = np.abs(a) @ size / 2.0 - (self.rail_m if panel[1] == "z" else 0.0)
         return np.array([half_t, half_a])
-
-
-@dataclass(frozen=True, eq=False)
-class Part:
-    """An extra part of the satellite (antenna, deployed panel, camera baffle, a CAD export): a triangle mesh
-    placed in the body frame (metres) and its surface material (:mod:`scenes.materials`)."""
-
-    name: str
-    vertices_m: np.ndarray
-    faces: np.ndarray
-    material: object = DEFAULT_MATERIAL
-    source: str = ""
-    # the placement: body = rotation @ own + translation_m, "own" being the part's coordinates (its file's, in
-    # metres, or its box's); local_vertices_m the vertices there (diodes on the part are given in them)
-    rotation: np.ndarray = None
-    translation_m: np.ndarray = None
-    local_vertices_m: np.ndarray = None
-
-    def to_body(self, points_own_m):
-        """Return points (M, 3) given in the part's own coordinates (m) in the body frame (m)."""
-        return np.asarray(points_own_m, float) @ self.rotation.T + self.translation_m
-
-
-def _rotation_xyz(angles_deg):
-    """Return the rotation matrix of extrinsic rotations about the body x, then y, then z axes (deg)."""
-    ax, ay, az = np.radians(np.asarray(angles_deg, float))
-    rx = np.array([[1, 0, 0], [0, np.cos(ax), -np.sin(ax)], [0, np.sin(ax), np.cos(ax)]])
-    ry = np.array([[np.cos(ay), 0, np.sin(ay)], [0, 1, 0], [-np.sin(ay), 0, np.cos(ay)]])
-    rz = np.array([[np.cos(az), -np.sin(az), 0], [np.sin(az), np.cos(az), 0], [0, 0, 1]])
-    return rz @ ry @ rx
-
-
-def _rotation_axis_angle(axis, angle_deg):
-    """Return the rotation matrix by ``angle_deg`` about the unit ``axis`` (right hand, Rodrigues)."""
-    k = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    a = np.radians(float(angle_deg))
-    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
-
-
-def _vector3(value, what):
-    try:
-        v = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        v = np.full(0, np.nan)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise ConfigError(f"{what} must be three finite numbers, got {value!r}")
-    return v
-
-
-def _build_part(index, table, base_dir, where):
-    """Return the :class:`Part` of a ``[[part]]`` table: a mesh file (STL, OBJ, PLY, GLB: anything trimesh
-    reads) in its stated unit, or a box ``box_mm``, rotated (``rotate_deg``, about body x then y then z),
-    translated (``translate_mm``) and, for a deployable, turned about its ``hinge``."""
-    import trimesh
-    if not isinstance(table, dict):
-        raise ConfigError(f"{where}: parts are given as [[part]] tables")
-    name = str(table.get("name", f"part{index}"))
-    here = f"{where} [[part]] {name!r}"
-    _check_keys(table, PART_KEYS, here)
-    if ("file" in table) == ("box_mm" in table):
-        raise ConfigError(f"{here}: give either file = \"mesh.stl\" (with unit) or box_mm = [x, y, z], not "
-                          f"{'both' if 'file' in table else 'neither'}")
-    if "file" in table:
-        unit = table.get("unit")
-        if unit not in UNITS:
-            raise ConfigError(f"{here}: give the mesh file's unit, unit = \"mm\" or unit = \"m\" (got {unit!r}); "
-                              "CAD exports are usually in mm")
-        path = Path(table["file"])
-        if not path.is_absolute():
-            path = Path(base_dir) / path
-        try:
-            mesh = trimesh.load(str(path), force="mesh", process=False)
-        except Exception as exc:            # trimesh raises many kinds; the user needs the file and the reason
-            raise ConfigError(f"{here}: cannot read the mesh file {str(path)!r} ({type(exc).__name__}: {exc}); "
-                              "give an existing STL, OBJ, PLY or GLB file") from None
-        verts = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), float)
-        faces = np.asarray(getattr(mesh, "faces", np.zeros((0, 3))), np.int64)
-        if len(faces) == 0:
-            raise ConfigError(f"{here}: cannot read the mesh file {str(path)!r}: it holds no triangles (give an "
-                              "STL, OBJ, PLY or GLB file of the part's surface)")
-        if not np.all(np.isfinite(verts)):
-            raise ConfigError(f"{here}: the mesh file {str(path)!r} has {int((~np.isfinite(verts)).any(axis=1).sum())} "
-                              "vertices that are not finite (NaN or inf); repair the export")
-        verts = verts * UNITS[unit]
-        extent = float(np.max(verts.max(axis=0) - verts.min(axis=0)))
-        lo, hi = PART_EXTENT_RANGE_M
-        if not lo <= extent <= hi:
-            other = "m" if unit == "mm" else "mm"
-            raise ConfigError(f"{here}: the mesh spans {extent:.4g} m with unit = {unit!r}, implausible for a "
-                              f"spacecraft part ({lo:g} to {hi:g} m); is its unit {other!r}?")
-        source = str(path)
-    else:
-        size = _vector3(table["box_mm"], f"{here} box_mm")
-        if np.any(size <= 0):
-            raise ConfigError(f"{here}: box_mm must be three positive lengths in mm, got {table['box_mm']!r}")
-        box = trimesh.creation.box(extents=size * MM)
-        verts, faces, source = np.asarray(box.vertices, float), np.asarray(box.faces, np.int64), "box"
-    local = verts
-    rotation = _rotation_xyz(_vector3(table.get("rotate_deg", [0, 0, 0]), f"{here} rotate_deg"))
-    translation = _vector3(table.get("translate_mm", [0, 0, 0]), f"{here} translate_mm") * MM
-    verts = verts @ rotation.T
-    verts = verts + translation
-    if "hinge" in table:
-        hinge = table["hinge"]
-        if not isinstance(hinge, dict):
-            raise ConfigError(f"{here}: hinge = {{axis = [x, y, z], point_mm = [x, y, z], angle_deg = A}}")
-        _check_keys(hinge, HINGE_KEYS, f"{here} hinge")
-        axis = _vector3(hinge.get("axis"), f"{here} hinge axis")
-        if np.linalg.norm(axis) == 0:
-            raise ConfigError(f"{here}: the hinge axis must not be zero")
-        point = _vector3(hinge.get("point_mm", [0, 0, 0]), f"{here} hinge point_mm") * MM
-        try:
-            angle = float(hinge.get("angle_deg"))
-        except (TypeError, ValueError):
-            angle = np.nan
-        if not np.isfinite(angle):
-            raise ConfigError(f"{here}: the hinge needs angle_deg, a finite number of degrees (the deployed angle)")
-        turn = _rotation_axis_angle(axis, angle)
-        verts = (verts - point) @ turn.T + point
-        rotation, translation = turn @ rotation, turn @ (translation - point) + point
-    reach = float(np.max(np.linalg.norm(verts, axis=1)))
-    if reach > PART_EXTENT_RANGE_M[1]:
-        raise ConfigError(f"{here}: once placed, the part reaches {reach:.4g} m from the body centre, beyond the "
-                          f"{PART_EXTENT_RANGE_M[1]:g} m a spacecraft part may; translate_mm and point_mm are in mm")
-    material = check_material(table.get("material", DEFAULT_MATERIAL), f"{here} material")
-    return Part(name=name, vertices_m=verts, faces=faces, material=material, source=source, rotation=rotation,
-                translation_m=translation, local_vertices_m=local)
-
-
-def _ray_distances(vertices, faces, origins, dirs):
-    """Return (R, F) the distance along each ray (origins, unit dirs (R, 3)) to each triangle (inf: missed),
-    Moller-Trumbore, numpy (for validation: a few rays)."""
-    v0, v1, v2 = (vertices[faces[:, i]] for i in range(3))
-    e1, e2 = v1 - v0, v2 - v0
-    p = np.cross(dirs[:, None], e2[None])                                   # (R, F, 3)
-    det = np.einsum("rfj,fj->rf", p, e1)
-    ok = np.abs(det) > 1e-18
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    tv = origins[:, None] - v0[None]
-    u = np.einsum("rfj,rfj->rf", tv, p) * inv
-    q = np.cross(tv, e1[None])
-    w = np.einsum("rj,rfj->rf", dirs, q) * inv
-    t = np.einsum("fj,rfj->rf", e2, q) * inv
-    hit = ok & (u >= 0) & (w >= 0) & (u + w <= 1) & (t > 0)
-    return np.where(hit, t, np.inf)
-
-
-def _validate_parts(parts, diodes):
-    """Refuse a diode buried in a (closed) part and a diode looking straight into one
-    (its normal meets a part within 1 mm)."""
-    import trimesh
-    centres = np.array([d.position_body_m for d in diodes])
-    normals = np.array([d.normal_body for d in diodes])
-    for part in parts:
-        if trimesh.Trimesh(part.vertices_m, part.faces, process=False).is_watertight:
-            # inside a closed surface: an odd number of crossings along any ray (a direction no face lines up with)
-            probe = np.broadcast_to(np.array([0.5773, 0.5774, 0.5775]) / np.linalg.norm([0.5773, 0.5774, 0.5775]),
-                                    centres.shape)
-            crossings = np.isfinite(_ray_distances(part.vertices_m, part.faces, centres, probe)).sum(axis=1)
-            if np.any(crossings % 2 == 1):
-                d = diodes[int(np.flatnonzero(crossings % 2 == 1)[0])]
-                raise ConfigError(f"diode {d.index} ({d.name}) lies inside part {part.name!r}; move the part or "
-                                  "the diode")
-        near = _ray_distances(part.vertices_m, part.faces, centres, normals).min(axis=1)
-        if np.any(near < 1e-3):
-            d = diodes[int(np.flatnonzero(near < 1e-3)[0])]
-            raise ConfigError(f"diode {d.index} ({d.name}) faces into part {part.name!r} (its normal meets it "
-                              "within 1 mm); turn the diode or move the part")
 
 
 @dataclass(frozen=True, eq=False)
@@ -410,7 +228,7 @@ def _aperture_for(fov_deg, well, where):
     if well is not None:
         if not isinstance(well, dict):
             raise ConfigError(f"{where}: 'well' must be a table {{height_mm = ..., opening_mm = [x, y]}}")
-        _check_keys(well, WELL_KEYS, f"{where} well")
+        check_keys(well, WELL_KEYS, f"{where} well")
         if well.get("shape", "square") == "round":
             return _round_well(well, fov_deg, where)
         if well.get("shape", "square") != "square" or "diameter_mm" in well:
@@ -527,8 +345,8 @@ def _build_part_diode(where, table, part, mount, aperture):
     if "normal" not in table:
         raise ConfigError(f"{where}: give normal = [x, y, z], the diode's normal in part {part.name!r}'s own "
                           "coordinates (as in its file or box)")
-    n, note = unit_normal(_vector3(table["normal"], f"{where} normal"), where)
-    at = _vector3(table.get("at_mm"), f"{where} at_mm (on a part: [x, y, z] in mm, the part's own coordinates)") * MM
+    n, note = unit_normal(vector3(table["normal"], f"{where} normal"), where)
+    at = vector3(table.get("at_mm"), f"{where} at_mm (on a part: [x, y, z] in mm, the part's own coordinates)") * MM
     tri = part.local_vertices_m[part.faces]
     dist, unit = _point_triangle_distances(at, tri)
     near = np.flatnonzero(dist <= dist.min() + 1e-9)
@@ -556,7 +374,7 @@ def _build_diode(index, table, body, mount, parts=()):
     where = f"diode {index} ({table.get('name', 'unnamed')})"
     if not isinstance(table, dict):
         raise ConfigError(f"{where}: each [[diode]] must be a table")
-    _check_keys(table, DIODE_KEYS, where)
+    check_keys(table, DIODE_KEYS, where)
     if "part" in table:
         if "panel" in table:
             raise ConfigError(f"{where}: give either panel (a face of the body) or part (a [[part]] by name), not both")
@@ -576,7 +394,7 @@ def _build_diode(index, table, body, mount, parts=()):
         return MountedDiode(index=index, name=str(table.get("name", f"d{index}")), normal_body=frame[2],
                             frame_body=frame, position_body_m=centre, aperture=aperture, fov_deg=fov, panel=None,
                             at_m=at, part=part.name, surface_normal_body=surface, window=window,
-                            note=unit_normal(_vector3(table["normal"], f"{where} normal"), where)[1])
+                            note=unit_normal(vector3(table["normal"], f"{where} normal"), where)[1])
     panel = table.get("panel")
     if panel is None:
         raise ConfigError(f"{where}: give the mounting panel, one of {', '.join(PANELS)} (or part = a [[part]]'s name)")
@@ -623,7 +441,7 @@ def _window_for(table, aperture, where):
     w = f"{where} window"
     if not isinstance(table, dict):
         raise ConfigError(f"{w}: give a table {{index = 1.5, thickness_mm = 1.0, gap_mm = 0.5, size_mm = [40, 40]}}")
-    _check_keys(table, WINDOW_KEYS, w)
+    check_keys(table, WINDOW_KEYS, w)
     missing = [k for k in WINDOW_KEYS[:4] if k not in table]
     if missing:
         raise ConfigError(f"{w}: give {', '.join(missing)} (index, thickness_mm, gap_mm, size_mm = [u, v]; "
@@ -814,7 +632,7 @@ class SatelliteConfig:
     def from_dict(cls, data, *, source="", extra_flat_diodes=None, dead=None):
         """Return the configuration described by a dict with the TOML file's structure (scenes/FORMAT.md)."""
         where = source or "configuration"
-        _check_keys(data, TOP_KEYS, where)
+        check_keys(data, TOP_KEYS, where)
         bd = _merged(data.get("body"), BODY_DEFAULTS, "body")
         size = np.asarray(bd["size_mm"], dtype=float)
         if size.shape != (3,) or np.any(size <= 0):
@@ -847,10 +665,10 @@ class SatelliteConfig:
         if not isinstance(part_tables, list):
             raise ConfigError(f"{where}: parts are given as [[part]] tables")
         base_dir = Path(source).parent if source else Path.cwd()
-        parts = tuple(_build_part(i, t, base_dir, where) for i, t in enumerate(part_tables))
+        parts = tuple(build_part(i, t, base_dir, where) for i, t in enumerate(part_tables))
         diodes = tuple(_build_diode(i, t, body, mount, parts) for i, t in enumerate(tables))
         _validate_mounts(diodes, body, mount)
-        _validate_parts(parts, diodes)
+        validate_parts(parts, diodes)
         check_scene(parts, part_tables, diodes, body, where)      # names, hinges, parts in the body
         cfg = cls(name=str(data.get("name", "custom")), description=str(data.get("description", "")), body=body,
                   mount=mount, diodes=diodes, dead=np.zeros(len(diodes), bool), layout=layout, source=source,

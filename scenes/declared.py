@@ -10,7 +10,11 @@
   ``--map band``: a name :mod:`simcore.radiometry.band` knows (e.g. "BPW34FS", "BPV23F"), or "unknown":
   then ``--map band`` is refused with a line naming the ways out (``band:DIODE`` to assume a part, or a
   broadband map). Left out: the BPW34FS, sunsim's default diode.
+* Every table's keys are checked (:func:`check_keys`: an unknown key is refused with the closest allowed
+  ones); lengths are given in mm (:data:`MM`), vectors as three finite numbers (:func:`vector3`).
 """
+import difflib
+
 import numpy as np
 
 from simcore.errors import InvalidInputError
@@ -19,6 +23,7 @@ NORMAL_EXACT_TOL = 1e-5
 # three digits round each component by <= 5e-4, moving the norm by <= 5e-4 (|x| + |y| + |z|) <= 8.7e-4
 NORMAL_ROUNDED_TOL = 2e-3
 UNKNOWN_DIODE = "unknown"
+MM = 1e-3       # metres per millimetre: a configuration's lengths are given in mm
 
 
 class ConfigError(InvalidInputError):
@@ -55,3 +60,25 @@ def body_none(value, where):
     if not isinstance(value, bool):
         raise ConfigError(f"{where}: [body] none must be true or false, got {value!r}")
     return value
+
+
+def check_keys(table, allowed, where):
+    """Refuse keys of ``table`` not in ``allowed``, naming the closest allowed ones (``where``: the table)."""
+    unknown = [k for k in table if k not in allowed]
+    if unknown:
+        hints = []
+        for k in unknown:
+            close = difflib.get_close_matches(k, allowed, n=2, cutoff=0.5)
+            hints.append(f"{k!r}" + (f" (did you mean {' or '.join(map(repr, close))}?)" if close else ""))
+        raise ConfigError(f"unknown key(s) in {where}: {', '.join(hints)}; allowed keys are {', '.join(allowed)}")
+
+
+def vector3(value, what):
+    """Return ``value`` as a float array (3,), or refuse it unless it is three finite numbers."""
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        v = np.full(0, np.nan)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ConfigError(f"{what} must be three finite numbers, got {value!r}")
+    return v

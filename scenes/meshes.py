@@ -24,7 +24,7 @@ Parts (see :mod:`scenes.config` for how a mount is placed):
   parts or the body) ends on the plug instead of falling through the hole onto the ramp and the hole's
   sides. Material 'black' whatever the mount's.
 - ``part_NAME``: each extra part of the configuration (``[[part]]``: a mesh file or a box, placed and
-  hinged, :class:`scenes.config.Part`), as given (not necessarily closed).
+  hinged, :class:`scenes.parts.Part`), as given (not necessarily closed).
 - ``diode_k`` (only in :func:`build_parts` with ``include_diodes=True`` and in
   :func:`diode_surfaces`): the sensitive square, facing along the normal.
 

@@ -42,9 +42,9 @@ def _inside_body(points, body):
 def _in_part(points, part):
     """Return (P,) bool: the points inside a closed part (an odd number of crossings along a direction no face
     lines up with), in slices of 512 points."""
-    from scenes.config import _ray_distances
+    from scenes.parts import ray_distances
     d = np.array([0.5773, 0.5774, 0.5775]) / np.linalg.norm([0.5773, 0.5774, 0.5775])
-    out = [np.isfinite(_ray_distances(part.vertices_m, part.faces, p, np.broadcast_to(d, p.shape))).sum(axis=1) % 2
+    out = [np.isfinite(ray_distances(part.vertices_m, part.faces, p, np.broadcast_to(d, p.shape))).sum(axis=1) % 2
            == 1 for p in np.array_split(points, max(1, len(points) // 512))]
     return np.concatenate(out)
 

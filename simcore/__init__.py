@@ -20,14 +20,15 @@ _EXPORTS = {
     "TLEError": "simcore.environment.orbit",
     "Attitude": "simcore.environment.attitude", "tumble": "simcore.environment.attitude",
     "ReflectivityMap": "simcore.environment.maps", "named_map": "simcore.environment.maps",
+    "Earth": "simcore.environment.earth",
     "StudyGeometry": "simcore.environment.geometry", "compute_geometry": "simcore.environment.geometry",
     # the satellite
-    "SatelliteConfig": "scenes.config",
+    "SatelliteConfig": "scenes.config", "Satellite": "scenes.satellite",
     "WellAperture": "simcore.shapes.aperture", "diode_frame": "simcore.shapes.aperture",
     # analytic model and renderer
     "albedo_cells": "simcore.radiometry.albedo",
-    "BodyBox": "simcore.radiometry.analytic", "diode_irradiance": "simcore.radiometry.analytic",
-    "DiodeSurfaces": "simcore.render.irradiance", "Renderer": "simcore.render.irradiance",
+    "BodyBox": "scenes.satellite", "diode_irradiance": "simcore.radiometry.analytic",
+    "DiodeSurfaces": "scenes.satellite", "Renderer": "simcore.render.irradiance",
     # sensor chain
     "DIODES": "simcore.sensor.chain", "SensorChain": "simcore.sensor.chain",
     # runs

@@ -140,7 +140,7 @@ def tripwire(monkeypatch):
     """Make each command's work fail the test if it starts."""
     def started(*a, **k):
         raise AssertionError("work started before the bad input was refused")
-    import scenes.view
+    import simcore.picture.view
     import simcore.pipeline.cluster
     import simcore.pipeline.evaluate
     import simcore.pipeline.evaluate_sunline
@@ -156,7 +156,7 @@ def tripwire(monkeypatch):
     import simcore.studies.flight
     import simcore.studies.flight_page
     from estimators import attitude as mekf
-    for module, name in [(simcore.pipeline.run.PreparedRun, "render_chunk"), (scenes.view, "view_picture"),
+    for module, name in [(simcore.pipeline.run.PreparedRun, "render_chunk"), (simcore.picture.view, "view_picture"),
                          (simcore.pipeline.cluster, "run_tasks"), (simcore.pipeline.evaluate, "evaluate_run"),
                          (simcore.pipeline.evaluate_sunline, "run_sunline_filter"), (mekf.MEKF, "__init__"),
                          (simcore.pipeline.sweep, "sweep"), (simcore.render.spectral_check, "compare"),

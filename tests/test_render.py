@@ -586,12 +586,12 @@ def test_non_finite_epochs_become_nan_and_invalid():
 
 
 def test_functional_render_and_config_diodes():
-    res = render(_bare(), [[0.0, 0.0, 1.0]])
-    np.testing.assert_allclose(res.direct_w_m2, [[E_SUN_W_M2]], rtol=1e-7)
-    config = pytest.importorskip("scenes.config")
-    cfg = config.SatelliteConfig.load("tilt20_fov70")
-    ds = DiodeSurfaces.from_config(cfg)
+    from scenes.satellite import Satellite
+    sat = Satellite.load("tilt20_fov70")
+    ds = DiodeSurfaces.from_config(sat.config)
     assert ds.count == 14 and ds.apertures is not None
+    res = render(sat, None, ds.frames[3, 2][None])          # diode 3's normal: its well and the body leave it lit
+    np.testing.assert_allclose(res.direct_w_m2[:, 3], [E_SUN_W_M2], rtol=1e-6)
 
 
 def _disc_segment_share(h_over_a):

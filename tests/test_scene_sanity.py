@@ -81,8 +81,8 @@ def test_the_half_inside_share_is_the_volume_share(tmp_path):
     cfg = SatelliteConfig.from_dict({"name": "x", "diode": [{"name": "a", "panel": "+x", "normal": [1, 0, 0],
                                                               "at_mm": [0, 0], "fov_deg": 70}]})
     # the cube's y extent 40..60 mm; inside the body (less the tolerance) 40..49.5 mm: 9.5 of 20 mm
-    from scenes.config import _build_part
-    part = _build_part(0, {"name": "c", "box_mm": [20, 20, 20], "translate_mm": [0, 50, 0]}, tmp_path, "t")
+    from scenes.parts import build_part
+    part = build_part(0, {"name": "c", "box_mm": [20, 20, 20], "translate_mm": [0, 50, 0]}, tmp_path, "t")
     expected = (50.0 - OVERLAP_TOLERANCE_M * 1e3 - 40.0) / 20.0
     assert abs(_overlap_share(part, cfg.body) - expected) < 1 / 16          # the grid's 16 cells a side
 

@@ -259,7 +259,7 @@ def test_export(tmp_path):
 
 # --- Mitsuba picture -----------------------------------------------------------------------------
 def test_picture_tiny(tmp_path):
-    from scenes.mitsuba_scene import picture
+    from simcore.picture.scene import picture
 
     pic = picture("tilt20_fov70", tmp_path / "sat.png", spp=4, resolution=(64, 36))
     assert (tmp_path / "sat.png").stat().st_size > 0
@@ -277,7 +277,7 @@ def test_earth_texture_orientation():
     from simcore._llvm import import_mitsuba
     mi = import_mitsuba()
 
-    from scenes.mitsuba_scene import PictureGeometry, build_scene, load_scene
+    from simcore.picture.scene import PictureGeometry, build_scene, load_scene
     from simcore.constants import R_EARTH_MEAN_M
 
     data = np.load(files("simcore") / "data" / "toms_2005_mean.npz")

@@ -1,5 +1,5 @@
 """`sunsim view`: the camera's projection against Mitsuba, the caption's angles against independent
-computations, the pictures' sizes and diode numbers (scenes.view, scenes.mitsuba_scene.Camera)."""
+computations, the pictures' sizes and diode numbers (simcore.picture.view, simcore.picture.scene.Camera)."""
 import subprocess
 import sys
 import warnings
@@ -12,7 +12,7 @@ from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 from scenes.config import SatelliteConfig
-from scenes.mitsuba_scene import Camera, PictureGeometry, load_scene, render_passes
+from simcore.picture.scene import Camera, PictureGeometry, load_scene, render_passes
 from simcore.constants import R_EARTH_MEAN_M
 
 SUNSIM = [sys.executable, "-m", "simcore.cli"]
@@ -25,7 +25,7 @@ def test_a_point_lands_on_the_pixel_mitsuba_draws_it_on():
     # more here; 0.2 px bounds the Monte-Carlo noise of a blob's centroid at 256 samples per pixel.
     from simcore._llvm import import_mitsuba
     mi = import_mitsuba()
-    import scenes.mitsuba_scene  # noqa: F401  (sets the variant)
+    import simcore.picture.scene  # noqa: F401  (sets the variant)
 
     cam = Camera((0.9, -0.4, 0.5), (0.05, 0.02, -0.03), (0.0, 0.0, 1.0), 40.0, 96, 64)
     points = np.array([[0.0, 0.0, 0.0], [0.10, 0.25, 0.10], [-0.15, -0.05, -0.12]])
@@ -62,7 +62,7 @@ def test_caption_angles_closed_forms():
     # acos(6371.01 / 7071.01) = 25.71 deg above the horizon's dip: 30 deg below the horizontal is
     # -30 + 25.71 = -4.29 deg over the limb. Body axes built at known angles to the Sun:
     # x at 40 deg, y at 90 deg, z = x cross y at 50 deg.
-    from scenes.view import sun_earth_angles
+    from simcore.picture.view import sun_earth_angles
 
     lat, lon, h = np.radians(35.0), np.radians(-120.0), 700e3
     up = np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
@@ -96,7 +96,7 @@ def test_caption_angles_at_a_real_epoch_match_astropy():
     from astropy.time import Time
     from sgp4.api import Satrec
 
-    from scenes.view import DEFAULT_VIEW_TIME, view_epoch, sun_earth_angles, wide_camera
+    from simcore.picture.view import DEFAULT_VIEW_TIME, view_epoch, sun_earth_angles, wide_camera
 
     ve = view_epoch(DEFAULT_VIEW_TIME)
     got = sun_earth_angles(ve.geometry, wide_camera(ve.geometry, 32, 18))
@@ -126,7 +126,7 @@ def test_caption_angles_at_a_real_epoch_match_astropy():
 def test_the_close_up_numbers_every_diode(config, n):
     # Oracle: the configuration's diode count and indices (SPEC sec. 5): every diode is numbered in
     # at least one of the four panels, and only in panels it faces.
-    from scenes.view import DEFAULT_VIEW_TIME, close_up_cameras, _render_panel, view_epoch
+    from simcore.picture.view import DEFAULT_VIEW_TIME, close_up_cameras, _render_panel, view_epoch
 
     cfg = SatelliteConfig.load(config)
     ve = view_epoch(DEFAULT_VIEW_TIME)
@@ -144,7 +144,7 @@ def test_the_3u_close_up_crops_the_wings_so_its_diodes_stay_legible():
     # floor of 2 pixels for the 2.65 mm side of the diode each panel looks at nearly head-on, in the default
     # 960 x 540 picture (framed on the whole 0.7 m wing span, as before, it was 0.8 px); the wings reach 350 mm sideways, so the camera must stay
     # farther than that, and the 340.5 mm body must fit in the panel's height.
-    from scenes.view import DEFAULT_VIEW_TIME, close_up_cameras, close_up_framing, _render_panel, view_epoch
+    from simcore.picture.view import DEFAULT_VIEW_TIME, close_up_cameras, close_up_framing, _render_panel, view_epoch
 
     cfg = SatelliteConfig.load(files("scenes") / "examples" / "cubesat3u_panels.toml")
     half, distance = close_up_framing(cfg)
@@ -205,12 +205,12 @@ def test_drawn_coastline_points_are_where_mitsuba_sees_them():
     # matrix, a longitude offset of one map cell) puts it tens to thousands of km away.
     from simcore._llvm import import_mitsuba
     mi = import_mitsuba()
-    from scenes.view import coastline_segments, view_epoch, wide_camera
+    from simcore.picture.view import coastline_segments, view_epoch, wide_camera
 
     ve = view_epoch("2016-07-02T09:12:00Z")           # over Zambia: the East African coast in view
     cfg = SatelliteConfig.load("tilt0_fov90")
     cam = wide_camera(ve.geometry, 320, 180)
-    from scenes.mitsuba_scene import build_scene
+    from simcore.picture.scene import build_scene
     scene_dict, names, kinds, _ = build_scene(cfg, ve.geometry, camera=cam, spp=1)
     scene = load_scene(scene_dict)
     passes = render_passes(scene, names, kinds, 1)
@@ -240,7 +240,7 @@ def test_an_attitude_file_sets_the_body_axes(tmp_path):
     from sgp4.api import Satrec
     iers.conf.auto_download = False
 
-    from scenes.view import view_epoch, sun_earth_angles
+    from simcore.picture.view import view_epoch, sun_earth_angles
 
     (tmp_path / "att.csv").write_text("t_s,qw,qx,qy,qz\n0,1,0,0,0\n3600,1,0,0,0\n")
     ve = view_epoch("2016-07-02T00:30:00Z", start="2016-07-02T00:00:00Z", attitude_file=str(tmp_path / "att.csv"))

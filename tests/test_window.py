@@ -346,7 +346,7 @@ def test_example_run_passes_the_check_that_knows_the_window(tmp_path):
 
 # ---- sunsim view draws the window -------------------------------------------------------------------------------
 def test_view_outlines_the_window_where_the_camera_sees_it(tmp_path):
-    from scenes.view import close_up_cameras, window_outlines
+    from simcore.picture.view import close_up_cameras, window_outlines
     cfg = SatelliteConfig.load(EXAMPLE)
     cams = close_up_cameras(400, 300)
     above = cams["+x, above"]                    # looks down on the top face, where the diode and its window are

@@ -24,19 +24,20 @@ import numpy as np
 import xarray as xr
 
 from scenes.config import SatelliteConfig, body_side_normal
-from scenes.meshes import build_parts, build_satellite_mesh
+from scenes.satellite import Satellite
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance
 from simcore.radiometry.analytic_direct import disc_directions
 from simcore.radiometry.glint import SunGlint, check_refine as glint_check_refine
 from simcore.shapes.aperture import CircularWell
 from simcore.shapes.occlusion import box_hit
 from simcore.shapes.window import WindowedWell
-from simcore.render.irradiance import DiodeSurfaces, Renderer, occluder_scene, rays_blocked, widen_cells
+from simcore.render.irradiance import Renderer, occluder_scene, rays_blocked, widen_cells
 
 from simcore import _llvm
 from simcore._version import __version__
 from simcore.environment import attitude as _attitude
 from simcore.pipeline import check as _check
+from simcore.environment.earth import Earth
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M, TSI_W_M2
 from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
 from simcore.radiometry import band
@@ -186,14 +187,16 @@ class PreparedRun:
             sea = np.where(self.clouds.overcast(self.opts.clouds), 0.0, sea)
         return SunGlint(wind, sea=sea)
 
-    def glint_on(self, reflectivity_map):
-        """Return the run's glint for ``reflectivity_map`` (the run's map or :attr:`map_refined`: each sub-cell keeps
-        its cell's sea fraction, as the renderer sees it), or None."""
-        if self.glint is None:
-            return None
-        f = reflectivity_map.shape[0] // self.map.shape[0]
-        sea = self.glint.sea if f == 1 else np.repeat(np.repeat(self.glint.sea, f, axis=0), f, axis=1)
-        return SunGlint(self.glint.wind_m_s, self.glint.index, sea=sea, tau=self.glint.tau)
+    @property
+    def earth(self):
+        """Return the run's :class:`Earth`: its map with the sea's glint (:meth:`_sea_glint`); made on each use
+        (cheap), so that it always holds the run's current ``map``."""
+        return Earth(self.map, self.glint)
+
+    @functools.cached_property
+    def satellite(self):
+        """Return the run's :class:`Satellite`: the configuration's diodes, mesh and body box, each built once."""
+        return Satellite(self.config)
 
     @property
     def sun_angular_radius_rad(self):
@@ -207,24 +210,15 @@ class PreparedRun:
     @functools.cached_property
     def _parts(self):
         """Return ``scenes.meshes.build_parts`` of the configuration (the renderer's mesh and the mounts rule)."""
-        return build_parts(self.config)
+        return self.satellite.parts
 
     @property
     def renderer(self):
         if self._renderer is None:
-            self._renderer = Renderer(
-                DiodeSurfaces.from_config(self.config), build_satellite_mesh(self.config, self._parts),
-                reflectivity=self.map.values_south_first, lon_west_deg=float(self.map.lon_edges_deg[0]),
-                e_sun_w_m2=self.opts.e_sun_w_m2, sun_angular_radius_rad=self.sun_angular_radius_rad,
-                variant=self.opts.variant, **self._renderer_glint())
+            self._renderer = Renderer.from_scene(
+                self.satellite, self.earth, e_sun_w_m2=self.opts.e_sun_w_m2,
+                sun_angular_radius_rad=self.sun_angular_radius_rad, variant=self.opts.variant)
         return self._renderer
-
-    def _renderer_glint(self):
-        """Return the renderer's glint keyword ({} without glint: the call as it always was); its sea south first."""
-        if self.glint is None:
-            return {}
-        sea = self.glint.sea if self.map.south_first else self.glint.sea[::-1]
-        return {"glint": SunGlint(self.glint.wind_m_s, self.glint.index, sea=sea, tau=self.glint.tau)}
 
     def earth_sun_dir_body(self, sl):
         """Return (n, 3) the unit Earth-centre -> Sun vector in body axes (what lights the Earth, as in the
@@ -381,7 +375,7 @@ class PreparedRun:
         th, ph = self.renderer.direction_grid()
         TH, PH = np.meshgrid(th, ph, indexing="ij")
         local = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)
-        box = BodyBox.from_config(self.config)
+        box = self.satellite.body_box
         out = np.zeros(share.shape, bool)
         for k, frame in enumerate(np.asarray(self.config.frames)):
             model = np.zeros(TH.shape) if box is None else box_hit(box.positions_m[k], local @ frame, box.half_m) * 1.0
@@ -396,14 +390,13 @@ class PreparedRun:
         another thread while the renderer records and replays its frozen kernels (Dr.Jit records per thread)."""
         g = self.geometry
         out = diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
-                               self.config.frames, self.config.apertures, map=reflectivity_map,
+                               self.config.frames, self.config.apertures, earth=self.earth.on_grid(reflectivity_map),
                                e_sun_w_m2=self.opts.e_sun_w_m2, distance_scaling=self.opts.distance_scaling,
                                eclipse="conical" if self.opts.sun_disc else "cylindrical",
-                               body=BodyBox.from_config(self.config),
+                               body=self.satellite.body_box,
                                sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
                                albedo=albedo, backend="auto" if albedo else "numpy",
-                               visibility=self.visibility if mesh else None, box_albedo=box_albedo,
-                               glint=self.glint_on(reflectivity_map))
+                               visibility=self.visibility if mesh else None, box_albedo=box_albedo)
         if any(w is not None for w in self.config.windows):
             self._windowed_analytic(out, sl, reflectivity_map, direct, mesh, albedo, box_albedo)
         return out
@@ -419,8 +412,8 @@ class PreparedRun:
         idx = [k for k, w in enumerate(cfg.windows) if w is not None]
         resps = [WindowedWell(cfg.diodes[k].aperture, cfg.diodes[k].window) for k in idx]
         frames = np.asarray(cfg.frames)[idx]
-        box = BodyBox.from_config(cfg)
-        common = dict(map=reflectivity_map, e_sun_w_m2=self.opts.e_sun_w_m2,
+        box = self.satellite.body_box
+        common = dict(earth=self.earth.on_grid(reflectivity_map), e_sun_w_m2=self.opts.e_sun_w_m2,
                       distance_scaling=self.opts.distance_scaling,
                       eclipse="conical" if self.opts.sun_disc else "cylindrical",
                       sun_angular_radius_rad=self.sun_angular_radius_rad)
@@ -434,8 +427,7 @@ class PreparedRun:
             v = self.visibility
             vis = DirectionVisibility(v.mask[idx], v.fine[idx], v.half[idx])
         alb = diode_irradiance(*args, direct=False, visibility=vis, **common, box_albedo=box_albedo,
-                               body=box and BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]),
-                               glint=self.glint_on(reflectivity_map))
+                               body=box and BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]))
         res.albedo_w_m2[:, idx] = alb.albedo_w_m2
         for name in ("albedo_mesh_w_m2", "albedo_visibility_error_w_m2", "albedo_box_w_m2"):
             if getattr(res, name) is not None:
@@ -460,7 +452,7 @@ class PreparedRun:
         if not idx or cfg.body.none:            # no body ([body] none): nothing shades a window
             return out
         dirs, _, ok, _ = self._sun_disc_probes(sl)
-        box = BodyBox.from_config(cfg)
+        box = self.satellite.body_box
         for k in idx:
             front = dirs @ cfg.diodes[k].normal_body > 0
             below = dirs @ box.panel_normals[k] < 0

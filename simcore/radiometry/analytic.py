@@ -33,7 +33,7 @@ import functools
 
 import numpy as np
 
-from scenes.config import body_side_normal
+from scenes.satellite import BodyBox  # noqa: F401 (the model's body occluder; its home is the data layer)
 
 from simcore import _llvm
 from simcore.environment import eclipse as _eclipse
@@ -574,29 +574,12 @@ def _box_hit_dr(dr, origin, d, half):
     return (t_in <= t_out) & (t_out > 0)
 
 
-@dataclass(frozen=True)
-class BodyBox:
-    """The satellite body as an occluding box: half extents (3,) and the diodes' centres (K, 3),
-    body frame, metres; ``panel_normals`` (K, 3) the outward normals of the panels they sit on."""
-
-    half_m: tuple
-    positions_m: np.ndarray
-    panel_normals: np.ndarray
-
-    @classmethod
-    def from_config(cls, config):
-        """Return the body box of a ``scenes.config.SatelliteConfig``, or None where it has no body ([body] none)."""
-        if getattr(config.body, "none", False):
-            return None
-        return cls(tuple(float(x) / 2 for x in config.body.size_m), np.asarray(config.positions_m, float),
-                   np.array([body_side_normal(d, config.body) for d in config.diodes], float))
-
-
 # ---- public entry point ---------------------------------------------------------------------
 def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_body, responses, *,
                      map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
                      albedo=True, backend="auto", precision="single", batch_epochs=4096, body=None,
-                     sun_angular_radius_rad=0.0, direct=True, visibility=None, box_albedo=False, glint=None):
+                     sun_angular_radius_rad=0.0, direct=True, visibility=None, box_albedo=False, glint=None,
+                     earth=None):
     """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`AnalyticIrradiance`.
 
     ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
@@ -623,7 +606,13 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     from the same pass.
     ``glint``: a :class:`simcore.radiometry.glint.SunGlint`: the sea's Cox-Munk glint on each cell's sea
     fraction, added to the map's (diffuse) reflectivity (:func:`_glint_terms`); None: none.
+    ``earth``: a :class:`simcore.environment.earth.Earth`, the map and the glint in one (instead of ``map`` and
+    ``glint``).
     """
+    if earth is not None:
+        if map is not None or glint is not None:
+            raise ValueError("give the Earth either as earth= or as map= and glint=, not both")
+        map, glint = earth.map, earth.glint
     r_sat = _rows("r_sat_ecef_m", r_sat_ecef_m)
     r_sun = _rows("r_sun_ecef_m", r_sun_ecef_m)
     if r_sun.shape[0] == 1 and r_sat.shape[0] > 1:

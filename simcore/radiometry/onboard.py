@@ -22,6 +22,7 @@ import numpy as np
 
 from simcore.radiometry import analytic
 from simcore.constants import E_SUN_W_M2
+from simcore.environment.earth import Earth
 from simcore.environment.maps import as_map
 from simcore.radiometry.band import resolve_map
 
@@ -92,7 +93,16 @@ def _diodes(diodes):
     return np.asarray(frames, dtype=float), responses
 
 
-def predict_albedo_effective(geometry, R_gcrs_from_body_est, diodes, reflectivity_map, *, e_s0_w_m2=188.1,
+def on_board_earth(earth):
+    """Return the on-board :class:`simcore.environment.earth.Earth`: ``earth`` itself, or the Earth of a map (a
+    :class:`simcore.environment.maps.ReflectivityMap`, a name in :data:`simcore.environment.maps.MAP_NAMES` or a band
+    map such as ``'band'``, :func:`simcore.radiometry.band.resolve_map`) without glint."""
+    if isinstance(earth, Earth):
+        return earth
+    return Earth(resolve_map(earth) if isinstance(earth, str) else as_map(earth))
+
+
+def predict_albedo_effective(geometry, R_gcrs_from_body_est, diodes, earth, *, e_s0_w_m2=188.1,
                              e_sun_w_m2=E_SUN_W_M2, backend="auto"):
     """Return the predicted albedo on each diode (N, K), effective W/m^2 (the units of E_p, eq. 4.25).
 
@@ -101,9 +111,8 @@ def predict_albedo_effective(geometry, R_gcrs_from_body_est, diodes, reflectivit
     and ``R_ecef_from_gcrs`` (N, 3, 3); ``R_gcrs_from_body_est`` (N, 3, 3): the on-board
     attitude estimate (e.g. :func:`previous_attitude`; NaN rows give NaN predictions);
     ``diodes``: a :class:`scenes.config.SatelliteConfig` or ``(frames (K, 3, 3), responses)``;
-    ``reflectivity_map``: the on-board map (a :class:`simcore.environment.maps.ReflectivityMap` or a name
-    in :data:`simcore.environment.maps.MAP_NAMES` or a band map such as ``'band'``,
-    :func:`simcore.radiometry.band.resolve_map`). The Bhanderi sum of :func:`simcore.radiometry.analytic.diode_irradiance`
+    ``earth``: the on-board Earth (:func:`on_board_earth`: an :class:`simcore.environment.earth.Earth`, or a map
+    or a map's name). The Bhanderi sum of :func:`simcore.radiometry.analytic.diode_irradiance`
     (W/m^2 at the solar constant ``e_sun_w_m2``) is scaled by E_S0 / E_sun like the Earth
     light in the sensor chain (thesis sec. 4.2.1).
     """
@@ -114,12 +123,12 @@ def predict_albedo_effective(geometry, R_gcrs_from_body_est, diodes, reflectivit
         raise ValueError(f"R_gcrs_from_body_est must be (N, 3, 3) with N = {n_ep} (one per epoch of the "
                          f"geometry), got shape {R_est.shape}")
     frames, responses = _diodes(diodes)
-    refl = resolve_map(reflectivity_map) if isinstance(reflectivity_map, str) else as_map(reflectivity_map)
+    earth = on_board_earth(earth)
     out = np.full((n_ep, frames.shape[0]), np.nan)
     ok = np.all(np.isfinite(R_est), axis=(1, 2))
     if ok.any():
         R_ecef_from_body = R_ecef_from_gcrs[ok] @ R_est[ok]
-        irr = analytic.diode_irradiance(r_sat[ok], r_sun[ok], R_ecef_from_body, frames, responses, map=refl,
+        irr = analytic.diode_irradiance(r_sat[ok], r_sun[ok], R_ecef_from_body, frames, responses, earth=earth,
                                         e_sun_w_m2=e_sun_w_m2, eclipse=None, backend=backend)
         out[ok] = irr.albedo_w_m2 * (float(e_s0_w_m2) / float(e_sun_w_m2))
     return out

@@ -105,6 +105,7 @@ import weakref
 import numpy as np
 
 from scenes.materials import MaterialError, bsdf_dict, check_material, is_black
+from scenes.satellite import DiodeSurfaces  # noqa: F401 (the renderer's input; its home is the data layer)
 from simcore import _llvm
 from simcore._llvm import host_array, host_buffer, host_wrap
 from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M
@@ -230,81 +231,6 @@ def choose_variant(requested=None):
 
 
 # --------------------------------------------------------------------------- inputs
-
-@dataclass(frozen=True)
-class DiodeSurfaces:
-    """K rectangular diodes in the body frame (metres).
-
-    ``positions_m`` (K, 3): centre of each sensitive surface; ``frames`` (K, 3, 3):
-    rows (u, v, n), n the outward normal; ``sizes_m`` (K, 2): sides along u and v.
-    ``apertures``: optional sequence of K ``simcore.shapes.aperture.WellAperture`` used only
-    to shape the albedo sampling (the traced mesh decides what is blocked). ``windows``: optional
-    sequence of K ``simcore.shapes.window.Window`` or None (a cover glass over the diode, traced per
-    sample: :meth:`Renderer._through_window`); None, or all None: no window anywhere (the kernels
-    then run exactly the code they ran before windows existed).
-    """
-
-    positions_m: np.ndarray
-    frames: np.ndarray
-    sizes_m: np.ndarray
-    apertures: tuple = None
-    windows: tuple = None
-
-    def __post_init__(self):
-        p = np.asarray(self.positions_m, dtype=float)
-        f = np.asarray(self.frames, dtype=float)
-        s = np.asarray(self.sizes_m, dtype=float)
-        if p.ndim != 2 or p.shape[1] != 3:
-            raise ValueError(f"diode positions_m must have shape (K, 3), got {p.shape}")
-        k = p.shape[0]
-        if f.shape != (k, 3, 3):
-            raise ValueError(f"diode frames must have shape ({k}, 3, 3) (rows u, v, n), got {f.shape}")
-        if s.shape == (2,):
-            s = np.broadcast_to(s, (k, 2)).copy()
-        if s.shape != (k, 2) or not np.all(s > 0):
-            raise ValueError(f"diode sizes_m must be positive with shape ({k}, 2) or (2,), got {s.shape}")
-        err = np.abs(np.einsum("kij,klj->kil", f, f) - np.eye(3)).max() if k else 0.0
-        if err > 1e-6:
-            raise ValueError(f"diode frames must be orthonormal (rows u, v, n); worst deviation {err:.2e}")
-        if not (np.all(np.isfinite(p))):
-            raise ValueError("diode positions_m must be finite")
-        if self.apertures is not None and len(self.apertures) != k:
-            raise ValueError(f"apertures must list one WellAperture per diode ({k}), got {len(self.apertures)}")
-        object.__setattr__(self, "positions_m", p)
-        object.__setattr__(self, "frames", f)
-        object.__setattr__(self, "sizes_m", s)
-        if self.apertures is not None:
-            object.__setattr__(self, "apertures", tuple(self.apertures))
-        if self.windows is not None:
-            if len(self.windows) != k:
-                raise ValueError(f"windows must list one Window or None per diode ({k}), got {len(self.windows)}")
-            object.__setattr__(self, "windows", None if all(w is None for w in self.windows)
-                               else tuple(self.windows))
-
-    @property
-    def count(self):
-        return self.positions_m.shape[0]
-
-    @classmethod
-    def from_config(cls, config):
-        """Return the DiodeSurfaces of a ``scenes.config.SatelliteConfig`` (its ``positions_m``,
-        ``frames`` and ``aperture`` — one WellAperture shared by all diodes or one per diode)."""
-        frames = np.asarray(config.frames, dtype=float)
-        ap = getattr(config, "apertures", None)
-        if ap is None:
-            ap = config.aperture
-        aps = tuple(ap) if isinstance(ap, (list, tuple)) else (ap,) * frames.shape[0]
-        sizes = np.array([[a.diode_x_m, a.diode_y_m] for a in aps])
-        return cls(np.asarray(config.positions_m, dtype=float), frames, sizes, aps,
-                   getattr(config, "windows", None))
-
-    def subset(self, idx):
-        """Return the DiodeSurfaces of the diodes ``idx`` (indices), in that order."""
-        idx = list(idx)
-        return DiodeSurfaces(self.positions_m[idx], self.frames[idx], self.sizes_m[idx],
-                             None if self.apertures is None else [self.apertures[i] for i in idx],
-                             None if self.windows is None else [self.windows[i] for i in idx])
-
 
 @dataclass
 class RenderResult:
@@ -551,6 +477,18 @@ class Renderer:
         self._vis = self._visibility_table()
         self._frozen = {}            # kernel name -> its drjit.freeze wrapper (_run)
         self._hit = None if self._pt is None else self._hit_table()
+
+    @classmethod
+    def from_scene(cls, satellite, earth=None, *, diodes=None, mesh=None, **render_options):
+        """Return the renderer of ``satellite`` (a :class:`scenes.satellite.Satellite`: its diodes and occluder
+        mesh) over ``earth`` (a :class:`simcore.environment.earth.Earth`: its map, radius and glint in the
+        renderer's layout, :meth:`~simcore.environment.earth.Earth.renderer_layout`; None: the default Earth, TOMS
+        2005 without glint). ``diodes``: indices of the diodes that receive light (None: all; the others stay in
+        the mesh as occluders); ``mesh``: an occluder mesh instead of the satellite's (e.g. one diode's own well);
+        ``render_options``: the other keywords of :class:`Renderer` (``e_sun_w_m2``, ``variant``, ...)."""
+        surfaces = satellite.diodes if diodes is None else satellite.diodes.subset(diodes)
+        layout = {} if earth is None else earth.renderer_layout()
+        return cls(surfaces, satellite.mesh if mesh is None else mesh, **layout, **render_options)
 
     def _sea_fraction(self, glint):
         """Return the sea fraction (n_lat, n_lon) of the reflectivity map's cells (its layout: row 0 the southern
@@ -2305,11 +2243,10 @@ def _shortfall(mean, se, n, rel, floor, power):
     return need, want
 
 
-def render(diodes, sun_dir_body, earth_center_body_m=None, R_ecef_from_body=None, sun_scale=None, *,
-           occluder_mesh=None, reflectivity=None, sun_angular_radius_rad=0.0, variant=None,
-           e_sun_w_m2=E_SUN_W_M2, **kwargs):
-    """Return a :class:`RenderResult` (direct and albedo irradiance, W/m^2, (N, K)) for one call;
-    builds a :class:`Renderer` and calls :meth:`Renderer.render` (see both for the arguments)."""
-    r = Renderer(diodes, occluder_mesh, reflectivity=reflectivity, sun_angular_radius_rad=sun_angular_radius_rad,
-                 variant=variant, e_sun_w_m2=e_sun_w_m2)
+def render(satellite, earth, sun_dir_body, earth_center_body_m=None, R_ecef_from_body=None, sun_scale=None, *,
+           sun_angular_radius_rad=0.0, variant=None, e_sun_w_m2=E_SUN_W_M2, **kwargs):
+    """Return a :class:`RenderResult` (direct and albedo irradiance, W/m^2, (N, K)) for one call: the renderer of
+    ``satellite`` over ``earth`` (:meth:`Renderer.from_scene`) and its :meth:`Renderer.render` (see both)."""
+    r = Renderer.from_scene(satellite, earth, sun_angular_radius_rad=sun_angular_radius_rad, variant=variant,
+                            e_sun_w_m2=e_sun_w_m2)
     return r.render(sun_dir_body, earth_center_body_m, R_ecef_from_body, sun_scale, **kwargs)

@@ -44,15 +44,16 @@ import trimesh
 
 from scenes.config import LAYOUT_DEFAULTS, ConfigError, SatelliteConfig, expand_layout, list_configs
 from scenes.materials import check_material
-from scenes.meshes import build_satellite_mesh, mount_meshes
+from scenes.meshes import mount_meshes
+from scenes.satellite import Satellite
 from simcore.constants import BPW34_AREA_M2
 from simcore.environment.eclipse import sunlit
 from simcore.environment.geometry import one_orbit_geometry
 from simcore.pipeline.evaluate import error_table, errors, measure, run_estimators
 from simcore.plots import plot_sweep
-from simcore.radiometry.analytic import BodyBox, diode_irradiance
+from simcore.radiometry.analytic import diode_irradiance
 from simcore.radiometry.response import Eq415Response
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.render.irradiance import Renderer
 from simcore.sensor.chain import DIODES
 from simcore.shapes.aperture import EQ415_CUTOFF_DEG, CircularWell, WellAperture
 from simcore.shapes.occlusion import direct_visibility
@@ -114,8 +115,8 @@ def traced_black_response(aperture, d_diode, *, samples=4096, seed=0, control_va
     cfg = well_config(aperture)
     parts = mount_meshes(cfg, 0)
     mesh = trimesh.util.concatenate([parts[k] for k in ("floor", "well") if k in parts])
-    ds = DiodeSurfaces.from_config(cfg)
-    r = Renderer(ds, mesh, e_sun_w_m2=1.0, control_variate=control_variate, variant=variant)
+    r = Renderer.from_scene(Satellite(cfg), mesh=mesh, e_sun_w_m2=1.0, control_variate=control_variate,
+                            variant=variant)
     sun_body = d @ cfg.frames[0]
     res = r.render(sun_body, None, direct_samples=int(samples), albedo=False, seed=int(seed))
     return res.direct_w_m2[:, 0], res.direct_se_w_m2[:, 0]
@@ -202,7 +203,7 @@ def well_renderer(aperture, material, floor_material=None, *, variant=None, max_
         start = ranges[k][1]
     mesh.metadata["parts"] = ranges
     mesh.metadata["materials"] = {"floor": floor, "well": cfg.mount.material, "plug": parts["plug"].metadata["material"]}
-    return Renderer(DiodeSurfaces.from_config(cfg), mesh, e_sun_w_m2=1.0, variant=variant, max_depth=max_depth)
+    return Renderer.from_scene(Satellite(cfg), mesh=mesh, e_sun_w_m2=1.0, variant=variant, max_depth=max_depth)
 
 
 def wall_response(aperture, d_diode, material, *, samples=16384, seed=0, floor_material=None, variant=None,
@@ -520,7 +521,7 @@ def wall_albedo_effect(config, materials, *, geometry=None, step_s=20.0, dead=(0
     lit = sunlit(g.illumination)
     live = np.ones(cfg.n_diodes, bool)
     live[list(dead)] = False
-    body = BodyBox.from_config(cfg)
+    body = Satellite(cfg).body_box
     args = (g.r_sat_ecef_m[lit], g.r_sun_ecef_m[lit], g.R_ecef_from_body[lit], cfg.frames)
 
     def values(resp):
@@ -582,6 +583,7 @@ def self_shadowing(config, *, nside=8, samples=64, seed=0, loss_threshold=0.01, 
     ``neighbour_response_loss`` (the rest: ramps and other mounts).
     """
     cfg = _as_config(config)
+    sat = Satellite(cfg)
     d = healpix_directions(nside)
     pix_sr = 4 * np.pi / len(d)
     frames = cfg.frames
@@ -589,19 +591,17 @@ def self_shadowing(config, *, nside=8, samples=64, seed=0, loss_threshold=0.01, 
     own = np.stack([(a if w is None else WindowedWell(a, w)).response(d @ f.T)
                     for a, w, f in zip(cfg.apertures, cfg.windows, frames)], axis=1)      # (P, K)
     if reference == "traced":
-        ds_all = DiodeSurfaces.from_config(cfg)
         for k in range(cfg.n_diodes):
             parts = mount_meshes(cfg, k)
             mesh_k = trimesh.util.concatenate([parts[p] for p in ("floor", "well") if p in parts])
-            ds = ds_all.subset([k])
-            rk = Renderer(ds, mesh_k, e_sun_w_m2=1.0, variant=variant)
+            rk = Renderer.from_scene(sat, diodes=[k], mesh=mesh_k, e_sun_w_m2=1.0, variant=variant)
             own[:, k] = rk.render(d, None, direct_samples=int(samples), albedo=False, seed=int(seed)).direct_w_m2[:, 0]
     elif reference != "analytic":
         raise ValueError(f"reference must be 'analytic' or 'traced', got {reference!r}")
-    r = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), e_sun_w_m2=1.0, variant=variant)
+    r = Renderer.from_scene(sat, e_sun_w_m2=1.0, variant=variant)
     res = r.render(d, None, direct_samples=int(samples), albedo=False, seed=int(seed))
     full, se = res.direct_w_m2, res.direct_se_w_m2
-    box = BodyBox.from_config(cfg)
+    box = sat.body_box
     vis_box = direct_visibility(cfg.apertures, frames, box.positions_m, box.panel_normals, d, box.half_m)
     # the box's visibility is NaN where the well itself lets no light through (own response 0)
     body_resp = np.where(own > 0, own * np.nan_to_num(vis_box, nan=0.0), 0.0)
@@ -653,11 +653,13 @@ def response_coverage(config, *, dead=(0,), level=0.01, nside=16):
     """Return the coverage fractions {'red', 'yellow', 'green'} counting, per HEALPix direction, the live
     diodes whose real response (the well's overlap x the body box's visibility, black walls) reaches
     ``level`` of normal incidence, instead of the nominal FOV cone of
-    :func:`simcore.studies.coverage.coverage_fractions` (thesis sec. 3.2.4)."""
-    cfg = _as_config(config)
+    :func:`simcore.studies.coverage.coverage_fractions` (thesis sec. 3.2.4). ``config``: a name, a
+    ``SatelliteConfig`` or a :class:`scenes.satellite.Satellite`."""
+    sat = config if isinstance(config, Satellite) else Satellite(_as_config(config))
+    cfg = sat.config
     d = pixel_directions(nside)
     resp = np.stack([a.response(d @ f.T) for a, f in zip(cfg.apertures, cfg.frames)], axis=1)
-    box = BodyBox.from_config(cfg)
+    box = sat.body_box
     vis = direct_visibility(cfg.apertures, cfg.frames, box.positions_m, box.panel_normals, d, box.half_m)
     resp = np.where(resp > 0, resp * np.nan_to_num(vis, nan=0.0), 0.0)      # NaN: the well itself is dark
     live = ~np.asarray(cfg.dead, bool)
@@ -711,9 +713,10 @@ def sweep_apertures(heights_mm=(0.3, 0.5, 1.0), tilts_deg=(20.0, 25.0, 30.0), fo
                                                                   / 2 / ap.height_m))),
                     "mount_height_mm": float(cfg.mount_heights_m().max() / MM), "feasible": True, "reason": ""})
         row.update(coverage_fractions(cfg, dead=dead))
-        row["green_response"] = response_coverage(cfg, dead=dead)["green"]
+        sat = Satellite(cfg)
+        row["green_response"] = response_coverage(sat, dead=dead)["green"]
         irr = diode_irradiance(g.r_sat_ecef_m, g.r_sun_ecef_m, g.R_ecef_from_body, cfg.frames, list(cfg.apertures),
-                               body=BodyBox.from_config(cfg))
+                               body=sat.body_box)
         live = np.ones(cfg.n_diodes, bool)
         live[list(dead)] = False
         alb = irr.albedo_w_m2[lit_epochs][:, live].sum()

@@ -21,11 +21,11 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from scenes.config import SatelliteConfig
-from scenes.meshes import build_satellite_mesh
+from scenes.satellite import Satellite
 from simcore.constants import EQ415_CUTOFF_COS
 from simcore.errors import InvalidInputError
 from simcore.radiometry.response import Eq415Response
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.render.irradiance import Renderer
 from simcore.sensor.errors import basilisk_response
 from simcore.shapes.window import WindowedWell
 
@@ -137,15 +137,15 @@ def traced_response(config, diodes=None, plane="x", step_deg=5.0, samples=4096, 
     (4 m^2) paths per diode and angle for the light the spacecraft reflects (when some part is not black)."""
     cfg = config if isinstance(config, SatelliteConfig) else SatelliteConfig.load(config)
     idx = check_request(cfg, diodes, plane, float(step_deg), samples, map_step_deg)
-    all_ds = DiodeSurfaces.from_config(cfg)
-    mesh = build_satellite_mesh(cfg)
+    sat = Satellite(cfg)
     theta = np.arange(0.0, 90.0 + 1e-9, float(step_deg))
     d_local = _plane_directions(theta, plane)
     out = []
     for k in idx:
         # one diode at a time receives light (its own Sun sweep); every part of the satellite still blocks it
-        ds, j = all_ds.subset([k]), 0
-        rend = Renderer(ds, mesh, e_sun_w_m2=1.0, variant=variant)
+        j = 0
+        rend = Renderer.from_scene(sat, diodes=[k], e_sun_w_m2=1.0, variant=variant)
+        ds = rend.diodes
         frame = ds.frames[j]
         res = rend.render(d_local @ frame, seed=seed, direct_samples=int(samples), albedo=False,
                           reflected_samples=reflected_samples)

@@ -13,7 +13,7 @@ Two views of one epoch of a study (orbit from the TLE, the run's default tumble,
 Mitsuba (``llvm_ad_mono``) path-traces the scene lit by the Sun (and, for legibility only, a
 uniform sky of radiance 0.3 E_sun / pi); each satellite part is drawn in its material colour
 times the rendered shading (radiance / the part's reflectance). Diode numbers are placed at the
-diode centres projected with :meth:`scenes.mitsuba_scene.Camera.project`, the inverse of the camera
+diode centres projected with :meth:`simcore.picture.scene.Camera.project`, the inverse of the camera
 handed to Mitsuba. The picture is for looking at, not a radiometric product.
 """
 from __future__ import annotations
@@ -24,8 +24,8 @@ import numpy as np
 
 from scenes.config import SatelliteConfig
 from scenes.meshes import diode_surfaces
-from scenes.mitsuba_scene import (_REFLECTANCE, Camera, PictureGeometry, build_scene, load_scene, render_passes,
-                                  srgb8)
+from simcore.picture.scene import (_REFLECTANCE, Camera, PictureGeometry, build_scene, load_scene,
+                                   render_passes, srgb8)
 from simcore.constants import R_EARTH_MEAN_M
 from simcore.environment.coastlines import coastlines_deg, lonlat_to_ecef_m
 from simcore.environment.maps import named_map

@@ -13,9 +13,9 @@ values (some exceed 1 over ice, never clamped), nearest filtering. The Sun is a
 ``directional`` emitter whose ``direction`` is the propagation direction, minus the Sun vector.
 
 :class:`Camera` is the pinhole camera handed to Mitsuba and its inverse, the projection that
-places annotations (``scenes.view``). :func:`picture` writes the plain radiometric picture (mono),
+places annotations (``simcore.picture.view``). :func:`picture` writes the plain radiometric picture (mono),
 tone-mapped and tinted with a per-shape false colour; the annotated picture an engineer checks is
-``scenes.view.view_picture`` (``sunsim view``).
+``simcore.picture.view.view_picture`` (``sunsim view``).
 """
 from __future__ import annotations
 
@@ -26,8 +26,10 @@ import matplotlib.image
 
 from scenes.config import SatelliteConfig
 from scenes.meshes import build_parts
+from scenes.satellite import Satellite
 
 from simcore import _llvm
+from simcore.environment.earth import Earth
 from simcore.environment.maps import named_map
 from simcore.constants import R_EARTH_MEAN_M
 
@@ -213,9 +215,11 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
                 fov_deg=36.0, max_depth=4, *, camera=None, reflectivity_map=None, earth=True, fill_radiance=0.0):
     """Return (Mitsuba scene dict, shape ids, their part kinds, the :class:`Camera`) for a picture (render frame, m).
 
+    ``config``: a :class:`scenes.config.SatelliteConfig` or a :class:`scenes.satellite.Satellite`;
     ``camera`` overrides the default one (28 deg above the horizontal, ``camera_distance_m`` away);
-    ``reflectivity_map`` (default TOMS 2005) textures the Earth with raw values; ``earth=False`` leaves
-    it out (a close-up of the satellite alone); ``fill_radiance`` > 0 adds a uniform sky of that
+    ``earth``: a :class:`simcore.environment.earth.Earth` (its map textures the sphere of its radius with raw
+    values), True for the Earth of ``reflectivity_map`` (default TOMS 2005), False to leave it out (a close-up
+    of the satellite alone); ``fill_radiance`` > 0 adds a uniform sky of that
     radiance (units of E_sun / pi) so that faces turned from the Sun stay legible.
     """
     mi = _mi()
@@ -229,7 +233,14 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
     sun_body = sun_body / np.linalg.norm(sun_body)
     if camera is None:
         camera = _default_camera(g, resolution, camera_distance_m, fov_deg)
-    rmap = named_map("toms2005") if reflectivity_map is None else reflectivity_map
+    if isinstance(earth, Earth):
+        if reflectivity_map is not None:
+            raise ValueError("give the picture's Earth either as earth=Earth(...) or as reflectivity_map=, not both")
+        rmap = earth.map
+    else:
+        rmap = named_map("toms2005") if reflectivity_map is None else reflectivity_map
+    parts = (config.display_parts if isinstance(config, Satellite)
+             else build_parts(config, include_diodes=True))
     scene = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": int(max_depth)},
@@ -250,7 +261,7 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
         }
         names.append("earth")
         kinds.append("earth")
-    for name, tm in build_parts(config, include_diodes=True).items():
+    for name, tm in parts.items():
         kind = name.split("_")[0]
         scene[name] = _mesh(mi, name, tm, _REFLECTANCE.get(kind, _REFLECTANCE["body"]))
         names.append(name)
@@ -333,14 +344,15 @@ def picture(config, path_png, epoch_geometry=None, spp=64, resolution=(960, 540)
             fov_deg=36.0, seed=0, exposure=1.0):
     """Render the satellite over the Earth and write a plain (unannotated) PNG; return a :class:`Picture`.
 
-    ``config``: a :class:`scenes.config.SatelliteConfig` or a configuration name; ``epoch_geometry``:
+    ``config``: a :class:`scenes.config.SatelliteConfig`, a :class:`scenes.satellite.Satellite` or a configuration
+    name; ``epoch_geometry``:
     a :class:`PictureGeometry` or a dict of its fields (default :func:`default_geometry`);
     ``camera_distance_m`` from the satellite centre, ``fov_deg`` horizontal; ``exposure`` scales the
     display image only (1: a white plate facing the Sun is just white). ``Picture.radiance`` is
     the rendered radiance in units of E_sun / pi (the Sun's irradiance is pi). The annotated view
-    an engineer checks is :func:`scenes.view.view_picture`.
+    an engineer checks is :func:`simcore.picture.view.view_picture`.
     """
-    if not isinstance(config, SatelliteConfig):
+    if not isinstance(config, (SatelliteConfig, Satellite)):
         config = SatelliteConfig.load(config)
     scene_dict, names, kinds, _ = build_scene(config, epoch_geometry, resolution, spp, camera_distance_m, fov_deg)
     passes = render_passes(load_scene(scene_dict), names, kinds, spp, seed)
