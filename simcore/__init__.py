@@ -32,8 +32,8 @@ _EXPORTS = {
     # sensor chain
     "DIODES": "simcore.sensor.chain", "SensorChain": "simcore.sensor.chain",
     # runs
-    "RunOptions": "simcore.pipeline.run", "execute": "simcore.pipeline.run", "open_run": "simcore.pipeline.run",
-    "check_run": "simcore.pipeline.run",
+    "RunOptions": "simcore.pipeline.options", "execute": "simcore.pipeline.run", "open_run": "simcore.pipeline.runfile",
+    "check_run": "simcore.pipeline.runfile",
     "run_errors": "simcore.pipeline.evaluate", "evaluate_run": "simcore.pipeline.evaluate",
     # studies
     "coverage_fractions": "simcore.studies.coverage", "coverage_map": "simcore.studies.coverage",

@@ -2,7 +2,7 @@
 corners (simcore.render.irradiance: reach_levels, corner_reach, _BOUND_SHARE, _BOUND_SHARE_GLINT).
 
 Oracles: great-circle distances between points drawn in the map's cells and on the bins' ground (numpy, independent
-of the tables' construction), and the analytic albedo (``PreparedRun.analytic``, cells refined 6 x 6) for the
+of the tables' construction), and the analytic albedo (``CheckReference.analytic``, cells refined 6 x 6) for the
 rendered z-scores.
 """
 import json
@@ -14,7 +14,8 @@ import xarray as xr
 from simcore.constants import R_EARTH_MEAN_M
 from simcore.environment.maps import ReflectivityMap
 from simcore.pipeline.check import Z_QUARTILE, normal_scores
-from simcore.pipeline.run import PreparedRun, RunOptions
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import PreparedRun
 from simcore.render.irradiance import _N_P, _N_T, corner_reach, reach_level, reach_levels
 
 
@@ -86,9 +87,9 @@ def test_bright_cells_between_bin_corners_keep_z_standard_normal():
     v[np.random.default_rng(7).random(v.shape) < 0.1] = 0.8
     centres = lambda e: 0.5 * (np.asarray(e)[1:] + np.asarray(e)[:-1])  # noqa: E731
     study.map = ReflectivityMap.from_array(v, centres(m0.lat_edges_deg), centres(m0.lon_edges_deg), name="bright cells")
-    study._renderer = None
+    study = study.with_renderer(None)                   # a renderer of the new map
     g, sl = study.geometry, slice(0, len(study.epochs))
-    ref = study.analytic(sl, study.map.refined(6), direct=False).albedo_w_m2
+    ref = study.reference.analytic(sl, study.map.refined(6), direct=False).albedo_w_m2
     z = []
     for seed in range(8):
         res = study.renderer.render(g.sun_dir_body, g.earth_center_body_m, g.R_ecef_from_body, study.sun_scale(sl),

@@ -26,7 +26,7 @@ import xarray as xr
 
 from scenes.config import SatelliteConfig
 from simcore.cli import main
-from simcore.pipeline.run import check_run
+from simcore.pipeline.runfile import check_run
 from simcore.render.irradiance import DiodeSurfaces, Renderer
 from simcore.shapes.window import Window, WindowedWell
 from simcore.studies.response import traced_response

@@ -83,6 +83,18 @@ EXACT_REL_TOL = 1e-5        # exact values (zero standard error): float32 arithm
 EXACT_ABS_TOL_W_M2 = 1e-9   # values this close are equal (e.g. 1e-14 against an exact 0)
 ALBEDO_FLOOR_W_M2 = 1.0     # albedo diode-epochs checked: reference above this
 
+PLAIN_CHECK_SHARE = 0.125     # share of the epochs whose direct Sun is rendered again without the aperture hint
+# ...with at least this many samples: with 64, a well's edge crosses a handful of strata and the hint-free
+# estimate's standard error is unreliable (a 4-epoch run read 22 sigma off with seed 7)
+PLAIN_CHECK_SAMPLES = 1024
+
+
+def plain_check_epochs(seed, n):
+    """Return (n,) bool: the epochs of a run whose direct Sun the check renders a second time without the
+    analytic aperture hint (a random share PLAIN_CHECK_SHARE, fixed by the seed, so a resumed run picks the
+    same ones)."""
+    return np.random.default_rng([int(seed), 0x9E3779B9]).random(n) < PLAIN_CHECK_SHARE
+
 
 def discretisation_bound(albedo_native, albedo_refined, factor):
     """Return the estimated cell-discretisation error of the refined analytic albedo (W/m^2).

@@ -1,6 +1,6 @@
 """Checks of a run's options that must all pass before anything is written.
 
-:func:`simcore.pipeline.run.prepare` turns :class:`simcore.pipeline.run.RunOptions` into a ready
+:func:`simcore.pipeline.run.prepare` turns :class:`simcore.pipeline.options.RunOptions` into a ready
 :class:`simcore.pipeline.run.PreparedRun` or raises a :class:`~simcore.errors.UserError`
 naming the option and what to do. It reads the configuration, TLE,
 attitude file and reflectivity map, computes the geometry and asks Dr.Jit
