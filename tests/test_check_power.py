@@ -17,7 +17,7 @@ from scenes.meshes import build_satellite_mesh
 from simcore import cli
 from simcore.pipeline.check import Z_QUARTILE, normal_scores
 from simcore.pipeline.run import PreparedRun, RunOptions, build_dataset, check_run
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.render import DiodeSurfaces, Renderer
 
 START, SPAN_S = "2016-03-20T12:00:00", 600.0
 RENDERED = ("rendered", "rendered_se", "rendered_dof", "samples", "direct_plain")

@@ -30,7 +30,7 @@ from simcore.radiometry.glint import SunGlint, check_refine as glint_check_refin
 from simcore.shapes.aperture import CircularWell
 from simcore.shapes.occlusion import box_hit
 from simcore.shapes.window import WindowedWell
-from simcore.render.irradiance import DiodeSurfaces, Renderer, occluder_scene, rays_blocked, widen_cells
+from simcore.render import DiodeSurfaces, Renderer, occluder_scene, rays_blocked, widen_cells
 
 from simcore import _llvm
 from simcore._version import __version__

@@ -25,7 +25,7 @@ from scenes.meshes import build_satellite_mesh
 from simcore.constants import EQ415_CUTOFF_COS
 from simcore.errors import InvalidInputError
 from simcore.radiometry.response import Eq415Response
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.render import DiodeSurfaces, Renderer
 from simcore.sensor.errors import basilisk_response
 from simcore.shapes.window import WindowedWell
 

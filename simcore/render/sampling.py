@@ -1,0 +1,132 @@
+"""Rounds of samples per task: one round traced and reduced to a mean, a
+standard error and its degrees of freedom, and the two-stage rule that sizes a round to a target (docs/renderer.md)."""
+import numpy as np
+
+from simcore.render.launch import _mix32, _take
+
+# Estimators (part of the random-number key): the direct Sun, the albedo, the direct Sun without the
+# analytic aperture split (the check's independent estimate).
+_DIRECT, _ALBEDO, _DIRECT_PLAIN, _REFLECTED = 1, 2, 3, 4
+
+
+class Rounds:
+    """Rounds of samples (a mixin of :class:`simcore.render.renderer.Renderer`: reads ``control_variate``,
+    ``_plain`` and :meth:`simcore.render.launch.Launcher._trace`)."""
+
+    def _rounds(self, kernel, base, kind, g_, k_, seed, n0, rel, floor, cap, fac, size, power, skip=None,
+                plain=False):
+        """Return (mean, standard error, effective degrees of freedom, samples) per task in ``base``,
+        in lane units x fac.
+
+        Without a target (``rel`` None) one round of ``n0`` samples per task. With one, two
+        stages: a pilot round of ``n0 // 4`` samples sizes each task's count (enough to reach
+        the target with the error falling as n^(-1/power), between ``n0`` and ``cap``), and a
+        fresh, independent round of that count gives the value and its standard error. The
+        pilot is then dropped, so the decision to take more samples never shares samples with
+        the estimate it sizes (a stopping rule fed by the estimate's own samples reads low where
+        it stopped early and high where it went on).
+        """
+        n0 = np.broadcast_to(np.asarray(n0, np.int64), (len(g_),))
+        if rel is None:
+            return self._round(kernel, base, kind, g_, k_, seed, n0.copy(), 0, fac, size, skip, plain)
+        pilot = np.maximum(n0 // 4, 16)
+        m, se, _, n = self._round(kernel, base, kind, g_, k_, seed, pilot, 0, fac, size, skip, plain)
+        need, want = _shortfall(m, se, n, rel, floor, power)
+        counts = np.clip(np.where(need, want, n0), n0, np.maximum(cap, n0)).astype(np.int64)
+        return self._round(kernel, base, kind, g_, k_, seed, counts, 1, fac, size, skip, plain)
+
+    def _round(self, kernel, base, kind, g_, k_, seed, counts, rnd, fac, size, skip, plain=False):
+        """Trace one round of ``counts`` (T,) samples for the tasks in ``base``; return (mean, standard
+        error, effective degrees of freedom, samples) per task, in lane units x fac.
+
+        With an analytic well per diode (``control_variate``, unless ``plain``), each task's samples
+        are split into group A, ~4/5 of them, drawn on the part of the diode that the analytic well
+        lights (``_well_rect``, weight = its area), and group B, ~1/5, drawn on the whole diode but
+        counted only outside that part. Both are traced against the full mesh, so the sum is
+        unbiased whatever the mesh; when the mesh's well is the analytic one, group B reads 0
+        and group A varies only where the body, rails or the Earth cut into the lit part.
+        ``skip`` (T, 2) marks groups known to be empty (point Sun, lit fraction 0 or 1).
+
+        The variance of the stratified mean is the sum of the strata's terms ``(a - b)^2 / 4``
+        (two samples a, b per stratum), each a one-degree-of-freedom estimate; few strata carry
+        the variance where a shadow edge or a bright patch crosses only some of them, so the
+        standard error has ``nu = (sum q)^2 / sum q^2`` effective degrees of freedom
+        (Satterthwaite 1946) and ``(estimate - truth) / se`` follows Student's t with ``nu``.
+        """
+        T = len(g_)
+        todo = np.arange(T)
+        if self.control_variate and not plain:
+            na = size(np.maximum(counts * 4 // 5, 1))
+            nb = size(np.maximum(counts // 5, 1))
+            sa = np.zeros(T, bool) if skip is None else skip[:, 0]
+            sb = np.zeros(T, bool) if skip is None else skip[:, 1]
+            na = np.where(sb, size(counts), na)        # only A: give it the whole budget
+            nb = np.where(sa, size(counts), nb)
+            whole = self._plain[k_]                    # round wells: no split, the disc's control variate
+            sa, sb = sa | whole, sb | whole
+            parts = [(3, todo[whole], size(counts)[whole]), (1, todo[~sa], na[~sa]), (2, todo[~sb], nb[~sb])]
+        else:
+            parts = [(0, todo, size(counts))]
+        idx = np.concatenate([p[1] for p in parts])
+        lanes = np.concatenate([p[2] for p in parts]).astype(np.int64)
+        mode = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
+        t = _take(base, idx)
+        t["key"] = _mix32(seed, g_[idx], k_[idx], kind, rnd, mode)
+        t["mode"] = mode
+        t["m"] = _strata_param(kind != _ALBEDO, lanes)
+        mean, var, var2 = _task_mean_var(self._trace(kernel, t, lanes), lanes)
+        est, v, v2, nr = np.zeros(T), np.zeros(T), np.zeros(T), np.zeros(T)
+        np.add.at(est, idx, mean)
+        np.add.at(v, idx, var)
+        np.add.at(v2, idx, var2)
+        np.add.at(nr, idx, lanes)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dof = np.where(v2 > 0, v * v / np.where(v2 > 0, v2, 1.0), np.inf)
+        return fac * est, fac * np.sqrt(v), dof, nr
+
+
+def _direct_size(n):
+    """Return the direct sample counts >= n (4 m^2, m >= 2) for requested counts n."""
+    m = np.maximum(np.ceil(np.sqrt(np.asarray(n) / 4.0)), 2)
+    return (4 * m * m).astype(np.int64)
+
+
+def _albedo_size(n):
+    """Return the albedo sample counts >= n (even, >= 4)."""
+    return np.maximum(2 * np.ceil(np.asarray(n) / 2.0), 4).astype(np.int64)
+
+
+def _strata_param(direct, counts):
+    """Return the per-task stratification parameter the kernels read as t['m']: m for the
+    direct (4 m^2 samples), the number of strata for the albedo (2 samples each)."""
+    if direct:
+        return np.round(np.sqrt(counts / 4.0))
+    return counts / 2.0
+
+
+def _task_mean_var(vals, counts):
+    """Return the mean (T,), the variance of the mean (T,) and the sum of the squares of its strata's
+    terms (T,; for the effective degrees of freedom) of per-lane values laid out task after task
+    (``counts`` each) as strata of two samples (float64)."""
+    # per stratum (a, b): the sum a + b and the squared difference (a - b)^2, in float64; a task's m strata all
+    # have the term (a - b)^2 / (4 m^2), so its sums divide once (the same as summing lane by lane to ~1e-16)
+    first = (np.cumsum(counts) - counts) // 2
+    a, b = vals[0::2], vals[1::2]
+    d2 = np.subtract(a, b, dtype=np.float64)
+    d2 *= d2
+    m = (counts // 2).astype(np.float64)
+    mean = np.add.reduceat(np.add(a, b, dtype=np.float64), first) / counts
+    var = np.add.reduceat(d2, first) / (4.0 * m * m)
+    d2 *= d2
+    return mean, var, np.add.reduceat(d2, first) / (16.0 * m ** 4)
+
+
+def _shortfall(mean, se, n, rel, floor, power):
+    """Return (tasks above their target standard error, samples the target needs), from a round of
+    ``n`` samples that gave ``mean`` and ``se``, assuming the error falls as n^(-1/power)."""
+    target = np.maximum(rel * np.abs(mean), floor)
+    need = se > target
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        want = 1.2 * n * (se / target) ** power
+    want = np.nan_to_num(want, nan=1.0, posinf=1e18)
+    return need, want
