@@ -8,7 +8,7 @@ import numpy as np
 from simcore.radiometry import glint as _glint
 from simcore.render.launch import _DrOps
 from simcore.render.probes import _VIS_NP, _VIS_NT
-from simcore.render.sampling import _ALBEDO, _albedo_size
+from simcore.render.sampling import _ALBEDO
 
 _DEFENSIVE = 0.02         # share of uniform-in-solid-angle sampling in the albedo proposal
 _N_T, _N_P = 16, 32       # albedo proposal bins: radial x azimuth (_N_P a power of 2)
@@ -186,15 +186,7 @@ class EarthAlbedo:
     def _albedo_proposal(self, t):
         """Return per-task cap basis and bin CDF/PMF for the albedo sampling of tasks ``t``."""
         R = self.earth_radius_m
-        earth = t["earth"]
-        dist = np.linalg.norm(earth, axis=-1)
-        w = earth / dist[:, None]
-        # 1 - cos(cap half-angle) = (R/d)^2 / (1 + cos): no cancellation for a distant Earth
-        xmax = (R / dist) ** 2 / (1.0 + np.sqrt(np.clip(1.0 - (R / dist) ** 2, 0.0, None)))
-        ref = np.where(np.abs(w[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-        e1 = np.cross(ref, w)
-        e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
-        e2 = np.cross(w, e1)
+        dist, w, e1, e2, xmax = cap_basis(t["earth"], R)
         # Radial bin edges between equal solid angle and equal central angle g from the
         # sub-satellite point (equal solid angle alone makes the bins near the limb span ~15 deg
         # of ground, where the terminator hides between corners), as fractions t of the cap's
@@ -229,14 +221,37 @@ class EarthAlbedo:
         cdf[:, -1] = 1.0
         return dict(prop, pmf=pmf.astype(np.float32), cdf=cdf.astype(np.float32))
 
-    def _albedo_rounds(self, e_, k_, g_, sun, earth, rot, E, seed, n0, rel, floor, cap, out, n_used):
+    def _albedo_rounds(self, e_, k_, g_, sun, earth, rot, E, plan, out, n_used):
+        """Render the albedo of tasks (epochs ``e_``, diodes ``k_``) into ``out`` by the :class:`Sampling` ``plan``
+        (its per-task factor set here)."""
         base = self._tasks(e_, k_, sun, earth, None)
         base["rot"] = rot[e_]
         base.update(self._albedo_proposal(dict(base, key=np.zeros(len(e_), np.uint32))))
         base.update(self._tables(base))
-        m, se, dof, n = self._rounds(self._albedo_kernel, base, _ALBEDO, g_, k_, seed, n0, rel, floor, cap, E[e_],
-                                     _albedo_size, 2.0)
+        m, se, dof, n = self._rounds(self._albedo_kernel, base, _ALBEDO, g_, k_, replace(plan, fac=E[e_]))
         out["am"][e_, k_], out["ase"][e_, k_], out["adof"][e_, k_], n_used[e_, k_] = m, se, dof, n
+
+
+def cap_basis(c, R):
+    """Return (distance (T,), nadir ``w``, ``e1``, ``e2`` (T, 3), ``xmax`` (T,)) of the Earth's cap (radius ``R``) seen
+    from points with the Earth's centre at ``c`` (T, 3): ``w`` toward the centre, ``e1`` and ``e2`` across it
+    (``e2 = w x e1``), ``xmax`` one minus the cosine of the cap's half-angle."""
+    dist = np.linalg.norm(c, axis=-1)
+    w = c / dist[:, None]
+    # 1 - cos(cap half-angle) = (R/d)^2 / (1 + cos): no cancellation for a distant Earth
+    xmax = (R / dist) ** 2 / (1.0 + np.sqrt(np.clip(1.0 - (R / dist) ** 2, 0.0, None)))
+    ref = np.where(np.abs(w[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+    e1 = np.cross(ref, w)
+    e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+    return dist, w, e1, np.cross(w, e1), xmax
+
+
+def sunlit_earth_in_view(c, s_e, R):
+    """Return (T,) bool: whether some sunlit part of the Earth (radius ``R``, centre at ``c`` (T, 3) m, lit from unit
+    ``s_e`` (T, 3)) is in view: angle(zenith, s_e) < 90 deg + acos(R / d)."""
+    dist = np.linalg.norm(c, axis=1)
+    lam = np.arccos(np.clip(R / dist, -1, 1))
+    return np.einsum("ti,ti->t", -c / dist[:, None], s_e) > np.cos(np.minimum(np.pi / 2 + lam, np.pi))
 
 
 def reach_levels(values):

@@ -1,9 +1,11 @@
 """The direct Sun estimator: next-event estimation from stratified points on the diode toward the Sun's disc,
 blocked by the mesh or the Earth (docs/renderer.md, "Direct Sun")."""
+from dataclasses import replace
+
 import numpy as np
 
 from simcore.render.launch import _PACKET, _TEA_ROUNDS
-from simcore.render.sampling import _DIRECT, _DIRECT_PLAIN, _direct_size
+from simcore.render.sampling import _DIRECT, _DIRECT_PLAIN
 from simcore.render.windows import _WINDOW_KEY
 from simcore.shapes.aperture import lit_rectangle_of
 
@@ -76,7 +78,10 @@ class DirectSun:
             val = val * dr.maximum(cos_nd, 0.0)
         return val
 
-    def _direct_rounds(self, e_, k_, g_, sun, earth, E, cos_c, seed, n0, rel, floor, cap, out, n_used, plain):
+    def _direct_rounds(self, e_, k_, g_, sun, earth, E, cos_c, plan, out, n_used):
+        """Render the direct Sun of tasks (epochs ``e_``, diodes ``k_``) into ``out`` by the :class:`Sampling`
+        ``plan`` (its per-task factor, skipped groups and counts set here)."""
+        plain, n0 = plan.plain, plan.n0
         base = self._tasks(e_, k_, sun, earth, None)
         disc = self.sun_angular_radius_rad > 0
         # lane mean -> W/m^2. With the disc, lanes read cos(n, d) for directions d uniform in solid angle
@@ -89,8 +94,8 @@ class DirectSun:
             skip = np.stack([lit <= 0.0, lit >= 1.0], axis=1)
         if not plain:
             n0 = np.where(self._partly_blocked(base, e_, sun, earth), n0 * _EDGE_BOOST, n0)
-        m, se, dof, n = self._rounds(self._direct_kernel, base, _DIRECT_PLAIN if plain else _DIRECT, g_, k_, seed, n0, rel, floor,
-                                     cap, fac, _direct_size, 4.0 / 3.0, skip, plain)
+        m, se, dof, n = self._rounds(self._direct_kernel, base, _DIRECT_PLAIN if plain else _DIRECT, g_, k_,
+                                     replace(plan, n0=n0, fac=fac, skip=skip))
         out["dm"][e_, k_], out["dse"][e_, k_], out["ddof"][e_, k_], n_used[e_, k_] = m, se, dof, n
 
     def _partly_blocked(self, base, e_, sun, earth):
@@ -178,3 +183,11 @@ class DirectSun:
         dd = np.einsum("tij,tj->ti", self.diodes.frames[k_], d_body)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return lit_rectangle_of(ap.T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
+
+
+def in_umbra(c, s, R, sin_a):
+    """Return (T,) bool: whether a satellite with the Earth's centre at ``c`` (T, 3) m sees no part of the Sun's disc
+    (radius ``asin(sin_a)``) toward unit ``s`` (T, 3) past the Earth of radius ``R`` (10 m of margin)."""
+    bb = np.einsum("ti,ti->t", c, s)
+    perp = np.linalg.norm(c - bb[:, None] * s, axis=1)
+    return (bb > 0) & (perp < R - np.linalg.norm(c, axis=1) * sin_a - 10.0)

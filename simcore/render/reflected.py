@@ -8,7 +8,8 @@ import numpy as np
 from scenes.materials import MaterialError, bsdf_dict, check_material, is_black
 from simcore._llvm import host_array
 from simcore.render.launch import _TEA_ROUNDS, SUN_ANGULAR_RADIUS_RAD
-from simcore.render.sampling import _REFLECTED, _direct_size
+from simcore.render.albedo import cap_basis
+from simcore.render.sampling import _REFLECTED
 from simcore.render.windows import _WINDOW_KEY
 
 _REFLECTED_SAMPLES0 = 256
@@ -364,8 +365,9 @@ class ReflectedLight:
         # irradiance = int L cos dOmega = pi E[L] for directions drawn with density cos / pi
         return total * np.pi
 
-    def _reflected_round(self, e_, k_, g_, sun, sun_e, earth_alb, rot, earth, E, E_e, seed, n, out, n_used):
-        """Path-trace ``n`` samples of the ``reflected`` component for tasks (e_, k_) into ``out``."""
+    def _reflected_round(self, e_, k_, g_, sun, sun_e, earth_alb, rot, earth, E, E_e, plan, out, n_used):
+        """Path-trace the ``reflected`` component of tasks (e_, k_) into ``out``: ``plan.n0`` samples each (one round,
+        no target: a :class:`Sampling`)."""
         base = self._tasks(e_, k_, sun, earth, None)
         base["E"] = E[e_]
         base["beta"] = self._hit["beta"][k_]         # the first direction's cosine-weighted share (_hit_table)
@@ -373,17 +375,9 @@ class ReflectedLight:
             base["rot"] = rot[e_]
             base["sun_e"] = sun_e[e_]
             base["E_e"] = E_e[e_]
-            c = base["earth"]
-            dist = np.linalg.norm(c, axis=1)
-            w = c / dist[:, None]
-            R = self.earth_radius_m
-            base["xmax"] = (R / dist) ** 2 / (1.0 + np.sqrt(np.clip(1.0 - (R / dist) ** 2, 0.0, None)))
-            ref = np.where(np.abs(w[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-            e1 = np.cross(ref, w)
-            e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
-            base.update(w=w, e1=e1, e2=np.cross(w, e1))
-        m, se, dof, nr = self._round(self._reflected_kernel, base, _REFLECTED, g_, k_, seed,
-                                     np.full(len(e_), n, np.int64), 0, 1.0, _direct_size, None, plain=True)
+            _, w, e1, e2, base["xmax"] = cap_basis(base["earth"], self.earth_radius_m)
+            base.update(w=w, e1=e1, e2=e2)
+        m, se, dof, nr = self._rounds(self._reflected_kernel, base, _REFLECTED, g_, k_, plan)
         out["rm"][e_, k_], out["rse"][e_, k_], out["rdof"][e_, k_], n_used[e_, k_] = m, se, dof, nr
 
 

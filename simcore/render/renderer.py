@@ -1,18 +1,20 @@
 """The :class:`Renderer`: a satellite scene (diodes, occluder mesh, the Earth's reflectivity) that renders the
 diodes' irradiance (W/m^2) along many epochs, composed of the estimators of this package (docs/renderer.md)."""
+from dataclasses import dataclass
+
 import numpy as np
 
 from simcore import _llvm
 from simcore._llvm import host_array
 from simcore.constants import E_SUN_W_M2, R_EARTH_MEAN_M
 from simcore.environment.maps import named_map
-from simcore.render.albedo import _ALBEDO_STRATA0, EarthAlbedo, reach_levels
-from simcore.render.direct import _DIRECT_SAMPLES0, DirectSun
+from simcore.render.albedo import _ALBEDO_STRATA0, EarthAlbedo, reach_levels, sunlit_earth_in_view
+from simcore.render.direct import _DIRECT_SAMPLES0, DirectSun, in_umbra
 from simcore.render.launch import SUN_ANGULAR_RADIUS_RAD, Launcher, choose_variant, occluder_scene
 from simcore.render.probes import Probes
 from simcore.render.reflected import _REFLECTED_LANES, _REFLECTED_SAMPLES0, ReflectedLight
 from simcore.render.results import DiodeSurfaces, RenderResult
-from simcore.render.sampling import Rounds
+from simcore.render.sampling import Rounds, Sampling, _albedo_size, _direct_size
 from simcore.render.split import ApertureSplit
 from simcore.render.windows import CoverGlass, _window_params
 
@@ -192,6 +194,50 @@ class Renderer(Probes, ReflectedLight, EarthAlbedo, DirectSun, CoverGlass, Apert
         """
         if self._mi.variant() != self.variant:     # someone switched Mitsuba's global variant
             self._mi.set_variant(self.variant)
+        inp = self._epochs(sun_dir_body, earth_center_body_m, R_ecef_from_body, sun_scale, sun_dir_earth_body,
+                           earth_sun_scale, epoch_index, albedo)
+        plans = _plans(seed, direct_samples, albedo_samples, reflected_samples, rel_se_direct, rel_se_albedo,
+                       abs_se_floor_w_m2, max_direct_samples, max_albedo_samples, hint)
+        self._check_epochs(inp)
+        N, K = len(inp.sun), self.diodes.count
+        out = {k: np.zeros((N, K)) for k in ("dm", "dse", "am", "ase", "rm", "rse")}
+        out.update(ddof=np.full((N, K), np.inf), adof=np.full((N, K), np.inf), rdof=np.full((N, K), np.inf))
+        n_dir, n_alb, n_ref = (np.zeros((N, K), dtype=np.int64) for _ in range(3))
+        do_reflected = bool(reflected) and self._pt is not None
+        pending = []
+        E = self.e_sun_w_m2 * inp.scale                              # (N,)
+        E_e = self.e_sun_w_m2 * inp.scale_e                          # (N,) lighting the Earth
+        cos_c = inp.sun @ self.diodes.frames[:, 2].T                # (N, K) float64
+        for b0 in range(0, N, batch_epochs):
+            eps = np.arange(b0, min(N, b0 + batch_epochs))
+            ep, dk = [a.ravel() for a in np.meshgrid(eps, np.arange(K), indexing="ij")]
+            g_ep = ep + int(epoch_offset) if inp.epoch_index is None else inp.epoch_index[ep]
+            self._direct_batch(inp, ep, dk, g_ep, E, cos_c, plans["direct"], out, n_dir)
+            if inp.do_albedo:
+                self._albedo_batch(inp, ep, dk, g_ep, E_e, plans["albedo"], out, n_alb)
+            if do_reflected:
+                pending.append(self._reflected_tasks(inp, ep, dk, g_ep))
+                # the wavefront's launches cost ~10 ms each to trace whatever their width: gather many epochs
+                if sum(len(p[0]) for p in pending) * plans["reflected"].n0 >= _REFLECTED_LANES or eps[-1] == N - 1:
+                    e_, k_, gg = (np.concatenate(x) for x in zip(*pending))
+                    pending = []
+                    if len(e_):
+                        self._reflected_round(e_, k_, gg, inp.sun, inp.sun_e, inp.earth if inp.do_albedo else None,
+                                              inp.rot, inp.earth, E, E_e, plans["reflected"], out, n_ref)
+            if progress is not None:
+                progress(len(eps))
+        nan = ~inp.valid
+        for k in out:
+            out[k][nan] = np.nan
+        return RenderResult(out["dm"], out["dse"], out["am"], out["ase"], n_dir, n_alb, inp.valid,
+                            self.variant, int(seed), out["ddof"], out["adof"],
+                            dict(sun_angular_radius_rad=self.sun_angular_radius_rad, e_sun_w_m2=self.e_sun_w_m2),
+                            out["rm"], out["rse"], n_ref, out["rdof"])
+
+    def _epochs(self, sun_dir_body, earth_center_body_m, R_ecef_from_body, sun_scale, sun_dir_earth_body,
+                earth_sun_scale, epoch_index, albedo):
+        """Return the :class:`_Epochs` of :meth:`render`'s per-epoch arguments, their shapes checked (the epochs'
+        values are checked by :meth:`_check_epochs`)."""
         sun = np.atleast_2d(np.asarray(sun_dir_body, dtype=float))
         N = sun.shape[0]
         if sun.shape != (N, 3):
@@ -222,117 +268,63 @@ class Renderer(Probes, ReflectedLight, EarthAlbedo, DirectSun, CoverGlass, Apert
         if sun_e.shape != (N, 3):
             raise ValueError(f"sun_dir_earth_body must have shape ({N}, 3) like sun_dir_body, got {sun_e.shape}")
         scale_e = scale if earth_sun_scale is None else np.broadcast_to(np.asarray(earth_sun_scale, dtype=float), (N,))
-        m0 = int(round(np.sqrt(int(direct_samples) / 4.0)))
-        if m0 < 2 or 4 * m0 * m0 != int(direct_samples):
-            raise ValueError(f"direct_samples must be 4 m^2 for an integer m >= 2 (2 points in each of "
-                             f"2 m^2 strata), e.g. 1024 or 4096, got {direct_samples}")
-        n0 = int(albedo_samples)
-        if n0 < 4 or n0 % 2:
-            raise ValueError(f"albedo_samples must be an even number >= 4 (2 per stratum), got {albedo_samples}")
-        mr = int(round(np.sqrt(int(reflected_samples) / 4.0)))
-        if mr < 2 or 4 * mr * mr != int(reflected_samples):
-            raise ValueError(f"reflected_samples must be 4 m^2 for an integer m >= 2 (2 points in each of "
-                             f"2 m^2 strata of the diode), e.g. 256 or 1024, got {reflected_samples}")
-        for name, v in (("rel_se_direct", rel_se_direct), ("rel_se_albedo", rel_se_albedo)):
-            if v is not None and not 0 < v < 1:
-                raise ValueError(f"{name} must be a relative standard error in (0, 1), e.g. 0.002, got {v}")
+        return _Epochs(sun, sun_e, earth, rot, scale, scale_e, epoch_index, do_albedo)
 
-        valid = np.all(np.isfinite(sun), axis=1) & np.isfinite(scale)
-        if earth is not None:
-            valid &= np.all(np.isfinite(earth), axis=1)
-            dist = np.linalg.norm(earth, axis=1)
+    def _check_epochs(self, inp):
+        """Mark the epochs whose inputs are not finite (``inp.valid``) and give them harmless stand-ins (their
+        values become NaN); raise for a satellite inside the Earth or a Sun vector that is not a unit vector."""
+        valid = np.all(np.isfinite(inp.sun), axis=1) & np.isfinite(inp.scale)
+        if inp.earth is not None:
+            valid &= np.all(np.isfinite(inp.earth), axis=1)
+            dist = np.linalg.norm(inp.earth, axis=1)
             inside = valid & (dist <= self.earth_radius_m)
             if np.any(inside):
                 raise ValueError(f"the satellite is inside the Earth at epoch {int(np.argmax(inside))} "
                                  f"(|earth_center_body_m| = {dist[np.argmax(inside)]:.0f} m <= R = "
                                  f"{self.earth_radius_m:.0f} m); earth_center_body_m is the Earth's centre "
                                  "relative to the satellite, in metres")
-        if do_albedo:
-            valid &= np.all(np.isfinite(rot), axis=(1, 2))
-        sun = np.where(valid[:, None], sun, [[0.0, 0.0, 1.0]])
-        sun = _unit(sun, "sun_dir_body")
-        sun_e = _unit(np.where(valid[:, None], sun_e, [[0.0, 0.0, 1.0]]), "sun_dir_earth_body")
-        if earth is not None:
-            earth = np.where(valid[:, None], earth, [[0.0, 0.0, -2.0 * self.earth_radius_m]])
-        if rot is not None:
-            rot = np.where(valid[:, None, None], rot, np.eye(3))
+        if inp.do_albedo:
+            valid &= np.all(np.isfinite(inp.rot), axis=(1, 2))
+        inp.valid = valid
+        inp.sun = _unit(np.where(valid[:, None], inp.sun, [[0.0, 0.0, 1.0]]), "sun_dir_body")
+        inp.sun_e = _unit(np.where(valid[:, None], inp.sun_e, [[0.0, 0.0, 1.0]]), "sun_dir_earth_body")
+        if inp.earth is not None:
+            inp.earth = np.where(valid[:, None], inp.earth, [[0.0, 0.0, -2.0 * self.earth_radius_m]])
+        if inp.rot is not None:
+            inp.rot = np.where(valid[:, None, None], inp.rot, np.eye(3))
 
-        K = self.diodes.count
-        out = {k: np.zeros((N, K)) for k in ("dm", "dse", "am", "ase", "rm", "rse")}
-        out.update(ddof=np.full((N, K), np.inf), adof=np.full((N, K), np.inf), rdof=np.full((N, K), np.inf))
-        n_ref = np.zeros((N, K), dtype=np.int64)
-        do_reflected = bool(reflected) and self._pt is not None
-        pending = []
-        n_dir = np.zeros((N, K), dtype=np.int64)
-        n_alb = np.zeros((N, K), dtype=np.int64)
-        E = self.e_sun_w_m2 * scale                                  # (N,)
-        E_e = self.e_sun_w_m2 * scale_e                              # (N,) lighting the Earth
-        cos_c = sun @ self.diodes.frames[:, 2].T                    # (N, K) float64
-        R = self.earth_radius_m
-        sin_a = np.sin(self.sun_angular_radius_rad)
-        for b0 in range(0, N, batch_epochs):
-            eps = np.arange(b0, min(N, b0 + batch_epochs))
-            ep, dk = [a.ravel() for a in np.meshgrid(eps, np.arange(K), indexing="ij")]
-            g_ep = ep + int(epoch_offset) if epoch_index is None else epoch_index[ep]
-            # ---- direct Sun: tasks facing the (disc of the) Sun and not in full umbra
-            act = valid[ep] & (cos_c[ep, dk] > -sin_a)
-            if earth is not None:
-                c = earth[ep]
-                bb = np.einsum("ti,ti->t", c, sun[ep])
-                perp = np.linalg.norm(c - bb[:, None] * sun[ep], axis=1)
-                umbra = (bb > 0) & (perp < R - np.linalg.norm(c, axis=1) * sin_a - 10.0)
-                act &= ~umbra
-            e_, k_ = ep[act], dk[act]
-            if len(e_):
-                self._direct_rounds(e_, k_, g_ep[act], sun, earth, E, cos_c, seed, 4 * m0 * m0, rel_se_direct,
-                                    abs_se_floor_w_m2, max_direct_samples, out, n_dir,
-                                    not hint)
-            # ---- albedo: tasks whose hemisphere meets the Earth's disc and a sunlit part of it
-            if do_albedo:
-                c = earth[ep]
-                dist = np.linalg.norm(c, axis=1)
-                w = c / dist[:, None]
-                sin_cap = R / dist                                   # sin of the cap half-angle
-                n = self.diodes.frames[dk, 2]
-                # angle(n, w) < 90 deg + cap half-angle  <=>  n . w > -sin(cap)
-                sees = np.einsum("ti,ti->t", n, w) > -sin_cap
-                # sunlit Earth in view: angle(zenith, s) < 90 deg + acos(R/d)
-                lam = np.arccos(np.clip(R / dist, -1, 1))
-                lit = np.einsum("ti,ti->t", -w, sun_e[ep]) > np.cos(np.minimum(np.pi / 2 + lam, np.pi))
-                act = valid[ep] & sees & lit
-                e_, k_ = ep[act], dk[act]
-                if len(e_):
-                    self._albedo_rounds(e_, k_, g_ep[act], sun_e, earth, rot, E_e, seed, n0, rel_se_albedo,
-                                        abs_se_floor_w_m2, max_albedo_samples, out, n_alb)
-            # ---- reflected: every task with sunlight on the satellite or a sunlit Earth in its sky
-            if do_reflected:
-                act = valid[ep].copy()
-                if earth is not None:
-                    c = earth[ep]
-                    dist = np.linalg.norm(c, axis=1)
-                    bb = np.einsum("ti,ti->t", c, sun[ep])
-                    perp = np.linalg.norm(c - bb[:, None] * sun[ep], axis=1)
-                    sunny = ~((bb > 0) & (perp < R - dist * sin_a - 10.0))
-                    lam = np.arccos(np.clip(R / dist, -1, 1))
-                    lit = np.einsum("ti,ti->t", -c / dist[:, None], sun_e[ep]) > np.cos(np.minimum(np.pi / 2 + lam, np.pi))
-                    act &= sunny | (do_albedo & lit)
-                pending.append((ep[act], dk[act], g_ep[act]))
-                # the wavefront's launches cost ~10 ms each to trace whatever their width: gather many epochs
-                if sum(len(p[0]) for p in pending) * 4 * mr * mr >= _REFLECTED_LANES or eps[-1] == N - 1:
-                    e_, k_, gg = (np.concatenate(x) for x in zip(*pending))
-                    pending = []
-                    if len(e_):
-                        self._reflected_round(e_, k_, gg, sun, sun_e, earth if do_albedo else None, rot,
-                                              earth, E, E_e, seed, 4 * mr * mr, out, n_ref)
-            if progress is not None:
-                progress(len(eps))
-        nan = ~valid
-        for k in out:
-            out[k][nan] = np.nan
-        return RenderResult(out["dm"], out["dse"], out["am"], out["ase"], n_dir, n_alb, valid,
-                            self.variant, int(seed), out["ddof"], out["adof"],
-                            dict(sun_angular_radius_rad=self.sun_angular_radius_rad, e_sun_w_m2=self.e_sun_w_m2),
-                            out["rm"], out["rse"], n_ref, out["rdof"])
+    # -- each estimator's tasks of a batch of epochs: those whose value is not exactly 0 by geometry
+    def _direct_batch(self, inp, ep, dk, g_ep, E, cos_c, plan, out, n_used):
+        """Render the direct Sun of the tasks (epochs ``ep``, diodes ``dk``) facing the (disc of the) Sun and not
+        in full umbra."""
+        act = inp.valid[ep] & (cos_c[ep, dk] > -np.sin(self.sun_angular_radius_rad))
+        if inp.earth is not None:
+            act &= ~in_umbra(inp.earth[ep], inp.sun[ep], self.earth_radius_m, np.sin(self.sun_angular_radius_rad))
+        if act.any():
+            self._direct_rounds(ep[act], dk[act], g_ep[act], inp.sun, inp.earth, E, cos_c, plan, out, n_used)
+
+    def _albedo_batch(self, inp, ep, dk, g_ep, E_e, plan, out, n_used):
+        """Render the albedo of the tasks whose hemisphere meets the Earth's disc and a sunlit part of it."""
+        c = inp.earth[ep]
+        dist = np.linalg.norm(c, axis=1)
+        w = c / dist[:, None]
+        sin_cap = self.earth_radius_m / dist                        # sin of the cap half-angle
+        n = self.diodes.frames[dk, 2]
+        # angle(n, w) < 90 deg + cap half-angle  <=>  n . w > -sin(cap)
+        sees = np.einsum("ti,ti->t", n, w) > -sin_cap
+        act = inp.valid[ep] & sees & sunlit_earth_in_view(c, inp.sun_e[ep], self.earth_radius_m)
+        if act.any():
+            self._albedo_rounds(ep[act], dk[act], g_ep[act], inp.sun_e, inp.earth, inp.rot, E_e, plan, out, n_used)
+
+    def _reflected_tasks(self, inp, ep, dk, g_ep):
+        """Return (epochs, diodes, global epochs) of the reflected tasks: every task with sunlight on the
+        satellite or a sunlit Earth in its sky."""
+        act = inp.valid[ep].copy()
+        if inp.earth is not None:
+            c = inp.earth[ep]
+            sunny = ~in_umbra(c, inp.sun[ep], self.earth_radius_m, np.sin(self.sun_angular_radius_rad))
+            act &= sunny | (inp.do_albedo & sunlit_earth_in_view(c, inp.sun_e[ep], self.earth_radius_m))
+        return ep[act], dk[act], g_ep[act]
 
 
 def _unit(v, name):
@@ -342,6 +334,47 @@ def _unit(v, name):
         raise ValueError(f"{name} must hold unit vectors; epoch {int(np.argmax(bad))} has norm "
                          f"{n[np.argmax(bad)]:.9f}. Normalise it (satellite -> Sun, body frame)")
     return v / n[..., None]
+
+
+@dataclass
+class _Epochs:
+    """:meth:`Renderer.render`'s per-epoch inputs (N epochs): unit Sun vectors (N, 3) seen from the satellite and
+    lighting the Earth, the Earth's centre (N, 3) m or None, ``rot`` (N, 3, 3) or None (no albedo), the Sun's
+    scales (N,), the global epoch indices or None; ``valid`` (N,) once checked (:meth:`Renderer._check_epochs`)."""
+
+    sun: np.ndarray
+    sun_e: np.ndarray
+    earth: np.ndarray
+    rot: np.ndarray
+    scale: np.ndarray
+    scale_e: np.ndarray
+    epoch_index: np.ndarray
+    do_albedo: bool
+    valid: np.ndarray = None
+
+
+def _plans(seed, direct_samples, albedo_samples, reflected_samples, rel_se_direct, rel_se_albedo, floor,
+           max_direct_samples, max_albedo_samples, hint):
+    """Return the :class:`Sampling` of each estimator ("direct", "albedo", "reflected") from
+    :meth:`Renderer.render`'s arguments, checked (the direct and albedo rounds set their per-task factors)."""
+    m0 = int(round(np.sqrt(int(direct_samples) / 4.0)))
+    if m0 < 2 or 4 * m0 * m0 != int(direct_samples):
+        raise ValueError(f"direct_samples must be 4 m^2 for an integer m >= 2 (2 points in each of "
+                         f"2 m^2 strata), e.g. 1024 or 4096, got {direct_samples}")
+    n0 = int(albedo_samples)
+    if n0 < 4 or n0 % 2:
+        raise ValueError(f"albedo_samples must be an even number >= 4 (2 per stratum), got {albedo_samples}")
+    mr = int(round(np.sqrt(int(reflected_samples) / 4.0)))
+    if mr < 2 or 4 * mr * mr != int(reflected_samples):
+        raise ValueError(f"reflected_samples must be 4 m^2 for an integer m >= 2 (2 points in each of "
+                         f"2 m^2 strata of the diode), e.g. 256 or 1024, got {reflected_samples}")
+    for name, v in (("rel_se_direct", rel_se_direct), ("rel_se_albedo", rel_se_albedo)):
+        if v is not None and not 0 < v < 1:
+            raise ValueError(f"{name} must be a relative standard error in (0, 1), e.g. 0.002, got {v}")
+    return dict(direct=Sampling(seed, 4 * m0 * m0, None, _direct_size, 4.0 / 3.0, rel_se_direct, floor,
+                                max_direct_samples, plain=not hint),
+                albedo=Sampling(seed, n0, None, _albedo_size, 2.0, rel_se_albedo, floor, max_albedo_samples),
+                reflected=Sampling(seed, 4 * mr * mr, 1.0, _direct_size, plain=True))
 
 
 def render(diodes, sun_dir_body, earth_center_body_m=None, R_ecef_from_body=None, sun_scale=None, *,

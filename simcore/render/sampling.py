@@ -1,5 +1,7 @@
-"""Rounds of samples per task: one round traced and reduced to a mean, a
+"""Rounds of samples per task: the sampling plan (:class:`Sampling`), one round traced and reduced to a mean, a
 standard error and its degrees of freedom, and the two-stage rule that sizes a round to a target (docs/renderer.md)."""
+from dataclasses import dataclass
+
 import numpy as np
 
 from simcore.render.launch import _mix32, _take
@@ -9,16 +11,36 @@ from simcore.render.launch import _mix32, _take
 _DIRECT, _ALBEDO, _DIRECT_PLAIN, _REFLECTED = 1, 2, 3, 4
 
 
+@dataclass(frozen=True, eq=False)
+class Sampling:
+    """How an estimator samples its tasks (:meth:`Rounds._rounds`): ``seed``; ``n0`` (T,) or one count, the
+    first round's samples per task; ``fac`` (T,) or one factor, lane units -> W/m^2; ``size``, the sample counts
+    the estimator's stratification can take for requested ones; ``power``, the error falls as n^(-1/power);
+    ``rel``, the target relative standard error (None: one round of ``n0``); ``floor``, the absolute one
+    (W/m^2); ``cap``, the most samples per task; ``skip`` (T, 2), groups of the aperture split known to be empty;
+    ``plain``, no aperture split."""
+
+    seed: int
+    n0: object
+    fac: object
+    size: object
+    power: float = 2.0
+    rel: float = None
+    floor: float = 0.0
+    cap: object = None
+    skip: object = None
+    plain: bool = False
+
+
 class Rounds:
     """Rounds of samples (a mixin of :class:`simcore.render.renderer.Renderer`: reads ``control_variate``,
     ``_plain`` and :meth:`simcore.render.launch.Launcher._trace`)."""
 
-    def _rounds(self, kernel, base, kind, g_, k_, seed, n0, rel, floor, cap, fac, size, power, skip=None,
-                plain=False):
+    def _rounds(self, kernel, base, kind, g_, k_, plan):
         """Return (mean, standard error, effective degrees of freedom, samples) per task in ``base``,
-        in lane units x fac.
+        in lane units x ``plan.fac``, by the :class:`Sampling` ``plan``.
 
-        Without a target (``rel`` None) one round of ``n0`` samples per task. With one, two
+        Without a target (``plan.rel`` None) one round of ``n0`` samples per task. With one, two
         stages: a pilot round of ``n0 // 4`` samples sizes each task's count (enough to reach
         the target with the error falling as n^(-1/power), between ``n0`` and ``cap``), and a
         fresh, independent round of that count gives the value and its standard error. The
@@ -26,18 +48,19 @@ class Rounds:
         the estimate it sizes (a stopping rule fed by the estimate's own samples reads low where
         it stopped early and high where it went on).
         """
-        n0 = np.broadcast_to(np.asarray(n0, np.int64), (len(g_),))
-        if rel is None:
-            return self._round(kernel, base, kind, g_, k_, seed, n0.copy(), 0, fac, size, skip, plain)
+        n0 = np.broadcast_to(np.asarray(plan.n0, np.int64), (len(g_),))
+        if plan.rel is None:
+            return self._round(kernel, base, kind, g_, k_, plan, n0.copy(), 0)
         pilot = np.maximum(n0 // 4, 16)
-        m, se, _, n = self._round(kernel, base, kind, g_, k_, seed, pilot, 0, fac, size, skip, plain)
-        need, want = _shortfall(m, se, n, rel, floor, power)
-        counts = np.clip(np.where(need, want, n0), n0, np.maximum(cap, n0)).astype(np.int64)
-        return self._round(kernel, base, kind, g_, k_, seed, counts, 1, fac, size, skip, plain)
+        m, se, _, n = self._round(kernel, base, kind, g_, k_, plan, pilot, 0)
+        need, want = _shortfall(m, se, n, plan.rel, plan.floor, plan.power)
+        counts = np.clip(np.where(need, want, n0), n0, np.maximum(plan.cap, n0)).astype(np.int64)
+        return self._round(kernel, base, kind, g_, k_, plan, counts, 1)
 
-    def _round(self, kernel, base, kind, g_, k_, seed, counts, rnd, fac, size, skip, plain=False):
-        """Trace one round of ``counts`` (T,) samples for the tasks in ``base``; return (mean, standard
-        error, effective degrees of freedom, samples) per task, in lane units x fac.
+    def _round(self, kernel, base, kind, g_, k_, plan, counts, rnd):
+        """Trace round ``rnd`` of ``counts`` (T,) samples for the tasks in ``base`` by the :class:`Sampling`
+        ``plan``; return (mean, standard error, effective degrees of freedom, samples) per task, in lane units x
+        ``plan.fac``.
 
         With an analytic well per diode (``control_variate``, unless ``plain``), each task's samples
         are split into group A, ~4/5 of them, drawn on the part of the diode that the analytic well
@@ -45,7 +68,7 @@ class Rounds:
         counted only outside that part. Both are traced against the full mesh, so the sum is
         unbiased whatever the mesh; when the mesh's well is the analytic one, group B reads 0
         and group A varies only where the body, rails or the Earth cut into the lit part.
-        ``skip`` (T, 2) marks groups known to be empty (point Sun, lit fraction 0 or 1).
+        ``plan.skip`` (T, 2) marks groups known to be empty (point Sun, lit fraction 0 or 1).
 
         The variance of the stratified mean is the sum of the strata's terms ``(a - b)^2 / 4``
         (two samples a, b per stratum), each a one-degree-of-freedom estimate; few strata carry
@@ -55,7 +78,8 @@ class Rounds:
         """
         T = len(g_)
         todo = np.arange(T)
-        if self.control_variate and not plain:
+        size, skip = plan.size, plan.skip
+        if self.control_variate and not plan.plain:
             na = size(np.maximum(counts * 4 // 5, 1))
             nb = size(np.maximum(counts // 5, 1))
             sa = np.zeros(T, bool) if skip is None else skip[:, 0]
@@ -71,7 +95,7 @@ class Rounds:
         lanes = np.concatenate([p[2] for p in parts]).astype(np.int64)
         mode = np.concatenate([np.full(len(p[1]), p[0]) for p in parts])
         t = _take(base, idx)
-        t["key"] = _mix32(seed, g_[idx], k_[idx], kind, rnd, mode)
+        t["key"] = _mix32(plan.seed, g_[idx], k_[idx], kind, rnd, mode)
         t["mode"] = mode
         t["m"] = _strata_param(kind != _ALBEDO, lanes)
         mean, var, var2 = _task_mean_var(self._trace(kernel, t, lanes), lanes)
@@ -82,7 +106,7 @@ class Rounds:
         np.add.at(nr, idx, lanes)
         with np.errstate(divide="ignore", invalid="ignore"):
             dof = np.where(v2 > 0, v * v / np.where(v2 > 0, v2, 1.0), np.inf)
-        return fac * est, fac * np.sqrt(v), dof, nr
+        return plan.fac * est, plan.fac * np.sqrt(v), dof, nr
 
 
 def _direct_size(n):
