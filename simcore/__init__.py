@@ -27,7 +27,7 @@ _EXPORTS = {
     # analytic model and renderer
     "albedo_cells": "simcore.radiometry.albedo",
     "BodyBox": "simcore.radiometry.analytic", "diode_irradiance": "simcore.radiometry.analytic",
-    "DiodeSurfaces": "simcore.render.results", "Renderer": "simcore.render.renderer",
+    "DiodeSurfaces": "simcore.render", "Renderer": "simcore.render",
     # sensor chain
     "DIODES": "simcore.sensor.chain", "SensorChain": "simcore.sensor.chain",
     # runs

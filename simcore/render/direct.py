@@ -99,16 +99,10 @@ class DirectSun:
         out["dm"][e_, k_], out["dse"][e_, k_], out["ddof"][e_, k_], n_used[e_, k_] = m, se, dof, n
 
     def _partly_blocked(self, base, e_, sun, earth):
-        """Return (T,) bool: the direct-Sun tasks whose light something other than the diode's own analytic
-        well blocks in part: the Earth's limb across the solar disc, or the mesh (body, rails, neighbours)
-        across the lit part of the diode, found by probe rays from its corners and centre toward the disc's
-        centre and rim (``_PROBE_RIM`` points).
-
-        Such a shadow can be a sliver of (point on the diode) x (point on the disc) worth 0.1 % of the
-        light: a round of ~1000 samples then misses it outright often enough (a few % of such tasks) to
-        read 10 standard errors high, because a standard error estimated from the samples cannot see
-        light that none of them met. These tasks get ``_EDGE_BOOST`` times the samples.
-        """
+        """Return (T,) bool: the direct-Sun tasks whose light something other than the diode's own analytic well
+        blocks in part: the Earth's limb across the solar disc, or the mesh (body, rails, neighbours) across the lit
+        part of the diode, found by probe rays from its corners and centre toward the disc's centre and rim
+        (``_PROBE_RIM`` points) (docs/renderer.md, "Partly blocked direct tasks")."""
         T = len(e_)
         a = self.sun_angular_radius_rad
         s = sun[e_]

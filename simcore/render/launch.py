@@ -261,21 +261,8 @@ class Launcher:
 
     def _run(self, kernel, lanes, *args):
         """Return ``kernel(lanes, *args)`` (a Dr.Jit array), the direct, albedo and proposal kernels replayed from a
-        ``drjit.freeze`` recording: traced once per layout of their inputs, then launched without tracing again.
-
-        Sound here because everything a launch's values depend on reaches the kernel as a traversed input: the
-        tasks' fields, tables and lane indices are the arrays of ``lanes`` (a :class:`_Lanes`: its ``layout``,
-        ``nf``, ``nu`` and the Python ``args`` are part of the recording's key, so a task dict with other fields
-        records anew), the occluders are ``lanes.scene``, and the renderer's own settings that shape the traced
-        code are ``_kernel_state`` (also part of the key). The launch size follows the lanes' counter
-        (``lanes.lane``: the only array the kernels read lane by lane; all else is gathered), and no kernel reads a
-        size or an element into Python. The reflected kernel is not frozen: its wavefront compacts the live paths
-        (``drjit.compress``), whose count depends on the data, and would record anew at every call. Variants not in
-        ``_FREEZE_VARIANTS`` trace every launch.
-
-        Either way the result passes through :func:`_anchored`: where the tracer folds a kernel's result to a
-        constant (a bare diode and no mesh: every lane reads 1), it would otherwise come back as one value instead
-        of the launch's lanes (seen on cuda_ad_mono, which traced every launch unanchored)."""
+        ``drjit.freeze`` recording: traced once per layout of their inputs, then launched without tracing again
+        (docs/renderer.md, "Why replaying a recording is sound")."""
         if kernel.__name__ == "_reflected_kernel":
             return kernel(lanes, *args)
         if self.variant not in _FREEZE_VARIANTS:

@@ -31,8 +31,8 @@ class Renderer(Probes, ReflectedLight, EarthAlbedo, DirectSun, CoverGlass, Apert
     the 0.53 deg disc (penumbra, uniform disc: no limb darkening); ``variant``:
     see :func:`choose_variant`; ``threads``: Dr.Jit CPU threads (default: all);
     ``control_variate``: use the diodes' WellAperture for the aperture split
-    (module docstring) when ``diodes.apertures`` is given; ``max_depth``: the most
-    spacecraft vertices of a ``reflected`` path (module docstring); ``glint``: a
+    (docs/renderer.md) when ``diodes.apertures`` is given; ``max_depth``: the most
+    spacecraft vertices of a ``reflected`` path (docs/renderer.md); ``glint``: a
     :class:`simcore.radiometry.glint.SunGlint`, the sea's Cox-Munk glint added to the map's Lambertian
     reflectance on each cell's sea fraction (``glint.sea`` in the map's layout, or GSHHG's), in every kernel
     that looks the Earth up (None: no glint, and the kernels traced as without it). The mesh's materials:

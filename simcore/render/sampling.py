@@ -37,17 +37,8 @@ class Rounds:
     ``_plain`` and :meth:`simcore.render.launch.Launcher._trace`)."""
 
     def _rounds(self, kernel, base, kind, g_, k_, plan):
-        """Return (mean, standard error, effective degrees of freedom, samples) per task in ``base``,
-        in lane units x ``plan.fac``, by the :class:`Sampling` ``plan``.
-
-        Without a target (``plan.rel`` None) one round of ``n0`` samples per task. With one, two
-        stages: a pilot round of ``n0 // 4`` samples sizes each task's count (enough to reach
-        the target with the error falling as n^(-1/power), between ``n0`` and ``cap``), and a
-        fresh, independent round of that count gives the value and its standard error. The
-        pilot is then dropped, so the decision to take more samples never shares samples with
-        the estimate it sizes (a stopping rule fed by the estimate's own samples reads low where
-        it stopped early and high where it went on).
-        """
+        """Return (mean, standard error, effective degrees of freedom, samples) per task in ``base``, in lane units
+        x ``plan.fac``, by the :class:`Sampling` ``plan`` (docs/renderer.md, "Rounds toward a target")."""
         n0 = np.broadcast_to(np.asarray(plan.n0, np.int64), (len(g_),))
         if plan.rel is None:
             return self._round(kernel, base, kind, g_, k_, plan, n0.copy(), 0)
@@ -60,22 +51,8 @@ class Rounds:
     def _round(self, kernel, base, kind, g_, k_, plan, counts, rnd):
         """Trace round ``rnd`` of ``counts`` (T,) samples for the tasks in ``base`` by the :class:`Sampling`
         ``plan``; return (mean, standard error, effective degrees of freedom, samples) per task, in lane units x
-        ``plan.fac``.
-
-        With an analytic well per diode (``control_variate``, unless ``plain``), each task's samples
-        are split into group A, ~4/5 of them, drawn on the part of the diode that the analytic well
-        lights (``_well_rect``, weight = its area), and group B, ~1/5, drawn on the whole diode but
-        counted only outside that part. Both are traced against the full mesh, so the sum is
-        unbiased whatever the mesh; when the mesh's well is the analytic one, group B reads 0
-        and group A varies only where the body, rails or the Earth cut into the lit part.
-        ``plan.skip`` (T, 2) marks groups known to be empty (point Sun, lit fraction 0 or 1).
-
-        The variance of the stratified mean is the sum of the strata's terms ``(a - b)^2 / 4``
-        (two samples a, b per stratum), each a one-degree-of-freedom estimate; few strata carry
-        the variance where a shadow edge or a bright patch crosses only some of them, so the
-        standard error has ``nu = (sum q)^2 / sum q^2`` effective degrees of freedom
-        (Satterthwaite 1946) and ``(estimate - truth) / se`` follows Student's t with ``nu``.
-        """
+        ``plan.fac`` (docs/renderer.md, "One round: the split's groups and the standard error's degrees of
+        freedom")."""
         T = len(g_)
         todo = np.arange(T)
         size, skip = plan.size, plan.skip
