@@ -10,7 +10,7 @@ from simcore.render.windows import _WINDOW_KEY
 from simcore.shapes.aperture import lit_rectangle_of
 
 _DIRECT_SAMPLES0 = 1024
-# Direct-Sun tasks that something besides the diode's own well shadows in part (Renderer._partly_blocked):
+# Direct-Sun tasks that something besides the diode's own well shadows in part (DirectSun._partly_blocked):
 # probe rays toward the disc's centre and this many points on its rim, and this many times the samples.
 _PROBE_RIM = 32
 _EDGE_BOOST = 16

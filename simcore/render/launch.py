@@ -17,7 +17,7 @@ SUN_ANGULAR_RADIUS_RAD = float(np.arcsin(R_SUN_M / AU_M))  # 0.2666 deg: the 0.5
 
 _VARIANTS = ("llvm_ad_mono", "cuda_ad_mono")
 # Rounds of the TEA hash behind every random number (in the direct and albedo kernels: behind a lane's first two
-# and the PCG32 state that supplies the rest, Renderer._rand). Mitsuba's default, 4, is meant for seeding: with it
+# and the PCG32 state that supplies the rest, Launcher._rand). Mitsuba's default, 4, is meant for seeding: with it
 # the two samples of a stratum (consecutive lanes) come out correlated and the pair estimate of the
 # variance reads ~8 % low (albedo z spread 1.09 over 4200 diode-epochs; 1.025 with 8 rounds, 1.006 with
 # 16, 0.995 with 32).
@@ -28,7 +28,7 @@ _MAX_LANES = 1 << 22      # lanes per launch (memory bound, ~100 MB of temporari
 # differently with other rays beside it (seen: 1 lane of 28 224 flipped with the epochs batched together, moving its
 # diode-epoch by 0.02 %); a task's values then depended on the batch, and a run resumed with another --chunk on them.
 _PACKET = 16
-# Variants whose direct, albedo and proposal kernels are recorded once and replayed (Renderer._run).
+# Variants whose direct, albedo and proposal kernels are recorded once and replayed (Launcher._run).
 _FREEZE_VARIANTS = ("llvm_ad_mono",)
 
 
@@ -37,7 +37,7 @@ _FREEZE_VARIANTS = ("llvm_ad_mono",)
 def _anchored(dr, lanes, values):
     """Return a kernel's per-lane ``values`` passed through a select on the lanes' counter (always true: a launch
     holds < 2^32 - 1 lanes; the values are unchanged), so that a result the tracer folds to a constant still has
-    one value per lane of the launch (Renderer._run)."""
+    one value per lane of the launch (Launcher._run)."""
     return dr.select(lanes.lane != 0xFFFFFFFF, values, 0.0)
 
 
@@ -98,7 +98,7 @@ def _mix32(*parts):
     return (h & np.uint64(0xFFFFFFFF)).astype(np.uint32)
 
 
-# set of tasks (Renderer._tables) and read at the task's "row"; every other field of a task dict is a column of
+# set of tasks (Launcher._tables) and read at the task's "row"; every other field of a task dict is a column of
 # _Lanes.f or _Lanes.u.
 _TABLES = ("cdf", "pmf", "tedge", "tlevel")
 
@@ -110,10 +110,10 @@ class _Lanes:
     columns), ``layout`` naming the columns ((field, first column, width, in u), ...); ``tables`` the per-task
     tables (``_TABLES``), the renderer's own (reflectivity map, visibility table) and the task of each packet of
     lanes; ``lane`` the lanes' counter 0 .. n - 1; ``scene`` the occluders (or None); ``task`` and ``j``, the lane's
-    task and sample index, are found in the kernel (Renderer._with_indices).
+    task and sample index, are found in the kernel (Launcher._with_indices).
 
     Packed so that a launch costs two uploads (:func:`simcore._llvm.host_array`, ~24 us each) rather than one per
-    field and column (~36 a launch). A dataclass so that ``drjit.freeze`` traverses it (Renderer._run): its
+    field and column (~36 a launch). A dataclass so that ``drjit.freeze`` traverses it (Launcher._run): its
     arrays are the frozen kernels' inputs, and ``layout``, ``nf`` and ``nu`` (Python values) are part of the
     recording's key."""
 
@@ -393,7 +393,7 @@ _GC_STATE = {"depth": 0, "was_enabled": False}
 
 @contextlib.contextmanager
 def _no_cycle_collection():
-    """Switch Python's cycle collector off for the duration (Renderer._run's frozen calls), and back on when the last
+    """Switch Python's cycle collector off for the duration (Launcher._run's frozen calls), and back on when the last
     of the threads inside such a block leaves it, if it was on before the first entered (a plain disable/enable per
     call would let one thread's exit switch it on while another records)."""
     with _GC_GUARD:
@@ -420,5 +420,5 @@ def _pad2(t):
 
 def _take(t, idx):
     """Return the task dict ``t`` of the tasks ``idx`` (indices or a slice): its numpy fields indexed, the rest (None,
-    and the tables uploaded once for all its tasks, Renderer._tables) as they are."""
+    and the tables uploaded once for all its tasks, Launcher._tables) as they are."""
     return {k: (v[idx] if isinstance(v, np.ndarray) else v) for k, v in t.items()}

@@ -14,7 +14,7 @@ class DiodeSurfaces:
     ``apertures``: optional sequence of K ``simcore.shapes.aperture.WellAperture`` used only
     to shape the albedo sampling (the traced mesh decides what is blocked). ``windows``: optional
     sequence of K ``simcore.shapes.window.Window`` or None (a cover glass over the diode, traced per
-    sample: :meth:`Renderer._through_window`); None, or all None: no window anywhere (the kernels
+    sample: :meth:`simcore.render.windows.CoverGlass._through_window`); None, or all None: no window anywhere (the kernels
     then run exactly the code they ran before windows existed).
     """
 
@@ -89,7 +89,7 @@ class RenderResult:
     ``reflected_*``: Sun and Earth light that reached the diode after at least one reflection on
 the spacecraft (exactly 0 when every part is 'black'); ``total_w_m2`` the sum of the three;
 ``*_dof``: the standard error's effective degrees of freedom (inf where
-    it is exactly 0; see ``Renderer._round``); ``*_samples``: rays traced for each (epoch, diode) (0 where the value is
+    it is exactly 0; see ``simcore.render.sampling.Rounds._round``); ``*_samples``: rays traced for each (epoch, diode) (0 where the value is
     exactly zero by geometry: Sun behind the diode, full eclipse, no sunlit Earth
     in view). ``valid`` (N,): False for epochs whose inputs were not finite
     (their values are NaN).

@@ -7,7 +7,7 @@ _WINDOW_KEY = 0x5BD1E995   # xor-ed into a lane's key: the window's own random n
 
 def _window_params(diodes):
     """Return (K, 9) float64 [index, thickness, gap, half side u, half side v, absorption (1/m), diode side u,
-    diode side v, has a window] per diode for :meth:`Renderer._through_window`, or None without windows."""
+    diode side v, has a window] per diode for :meth:`CoverGlass._through_window`, or None without windows."""
     if diodes.windows is None:
         return None
     out = np.zeros((diodes.count, 9))
