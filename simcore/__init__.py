@@ -28,7 +28,7 @@ _EXPORTS = {
     # analytic model and renderer
     "albedo_cells": "simcore.radiometry.albedo",
     "BodyBox": "scenes.satellite", "diode_irradiance": "simcore.radiometry.analytic",
-    "DiodeSurfaces": "scenes.satellite", "Renderer": "simcore.render.irradiance",
+    "DiodeSurfaces": "scenes.satellite", "Renderer": "simcore.render",
     # sensor chain
     "DIODES": "simcore.sensor.chain", "SensorChain": "simcore.sensor.chain",
     # runs

@@ -506,7 +506,7 @@ def _sensor_errors_help(name):
 
 def cmd_spectral_check(args):
     """Spectral Monte Carlo (directions x wavelengths) vs the analytic albedo on each diode's band map: z table."""
-    from simcore.render import spectral_check as sc
+    from simcore.pipeline import spectral_check as sc
     if not 1 <= args.epochs <= sc.SUNLIT_EPOCHS:
         raise InvalidInputError(f"--epochs must be 1 to {sc.SUNLIT_EPOCHS} (the default orbit is sunlit for "
                                 f"{sc.SUNLIT_EPOCHS} epochs {sc.DEFAULT_STEP_S:g} s apart from {sc.DEFAULT_START}), "

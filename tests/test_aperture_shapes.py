@@ -7,7 +7,7 @@ import trimesh
 from scenes.meshes import build_satellite_mesh
 from simcore.pipeline.options import RunOptions
 from simcore.pipeline.run import PreparedRun
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.render import DiodeSurfaces, Renderer
 from simcore.shapes.aperture import WellAperture
 from simcore.studies import aperture as A
 from walls_oracle_4277e88 import ORACLE

@@ -421,7 +421,7 @@ def _glint_epochs():
 
 def _rendered_glint(wind, index, ocean_planet, i, geo):
     """Return (value, se) (3,) of the rendered glint alone (no diffuse map) on epoch ``i``'s bare diodes, W/m^2."""
-    from simcore.render.irradiance import DiodeSurfaces, Renderer
+    from simcore.render import DiodeSurfaces, Renderer
     r_sat, r_sun, rot, frames = geo
     sea = np.ones((180, 288)) if ocean_planet else None
     rend = Renderer(DiodeSurfaces(np.zeros((3, 3)), frames[i], np.array([2.65e-3, 2.65e-3])), None,

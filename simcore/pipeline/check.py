@@ -8,7 +8,7 @@ the albedo, the square of the reference's own estimated cell-discretisation
 error ``delta``. Three components are checked:
 
 * ``direct``: the direct Sun as rendered (with the analytic wells' aperture
-  split, ``simcore.render.irradiance``), against the analytic aperture response
+  split, ``simcore.render``), against the analytic aperture response
   with the body's shadow and the solar-disc quadrature;
 * ``direct_plain``: on a random share of the epochs, the direct Sun rendered a
   second time without the analytic aperture hint and with its own random

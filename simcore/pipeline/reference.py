@@ -13,7 +13,7 @@ import numpy as np
 from scenes.config import body_side_normal
 from simcore import _llvm
 from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance, disc_directions
-from simcore.render.irradiance import Renderer, occluder_scene, rays_blocked, widen_cells
+from simcore.render import Renderer, occluder_scene, rays_blocked, widen_cells
 from simcore.shapes.aperture import CircularWell
 from simcore.shapes.occlusion import box_hit
 from simcore.shapes.window import WindowedWell

@@ -21,7 +21,7 @@ import numpy as np
 from scenes.config import SatelliteConfig
 from scenes.satellite import Satellite
 from simcore.radiometry.glint import SunGlint, check_refine as glint_check_refine
-from simcore.render.irradiance import Renderer
+from simcore.render import Renderer
 from simcore.environment.earth import Earth
 
 from simcore.environment import attitude as _attitude
