@@ -20,7 +20,7 @@ def main():
     p.add_argument("--samples", type=int, default=65536, help="reflected paths per direction (4 m^2)")
     p.add_argument("--variant", default=None, help="Mitsuba variant (default: GPU if any)")
     args = p.parse_args()
-    from simcore.render.irradiance import choose_variant
+    from simcore.render import choose_variant
     args.variant = choose_variant(args.variant)
     ap = WellAperture.design(75.0)
     d = A.cut_directions(np.arange(0.0, 90.0, 5.0), 0.0)

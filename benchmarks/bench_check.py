@@ -27,7 +27,9 @@ def main(argv=None):
                     help="first epoch (default %(default)s: sunlit, 34 min into the default run)")
     a = ap.parse_args(argv)
     import numpy as np
-    from simcore.pipeline.run import PLAIN_CHECK_SAMPLES, PreparedRun, RunOptions, plain_check_epochs
+    from simcore.pipeline.check import PLAIN_CHECK_SAMPLES, plain_check_epochs
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import PreparedRun
     load0 = os.getloadavg()[0]
     o = RunOptions(duration_s=float(a.first + a.epochs))
     st = PreparedRun(o)
@@ -41,7 +43,7 @@ def main(argv=None):
         T[name] = T.get(name, 0.0) + time.perf_counter() - t0
         return out
     timed("renderer (scene, tables)", lambda: st.renderer)
-    timed("visibility tables (once)", lambda: st.visibility)
+    timed("visibility tables (once)", lambda: st.reference.visibility)
     for start in range(a.first, a.first + a.epochs, o.chunk_epochs):
         sl = slice(start, min(start + o.chunk_epochs, a.first + a.epochs))
         args = (g.sun_dir_body[sl], g.earth_center_body_m[sl], g.R_ecef_from_body[sl], st.sun_scale(sl))
@@ -54,11 +56,11 @@ def main(argv=None):
             timed("hint-free direct re-render", st.renderer.render, *(x[pick] for x in args), seed=o.seed,
                   epoch_index=sl.start + pick, albedo=False, hint=False, reflected=False,
                   direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
-        timed("direct reference", st.analytic, sl, st.map, albedo=False)
-        timed("albedo, native cells", st.analytic, sl, st.map, direct=False, mesh=True, box_albedo=True)
-        timed(f"albedo, cells refined {st.check_refine}x{st.check_refine}", st.analytic, sl, st.map_refined,
+        timed("direct reference", st.reference.analytic, sl, st.map, albedo=False)
+        timed("albedo, native cells", st.reference.analytic, sl, st.map, direct=False, mesh=True, box_albedo=True)
+        timed(f"albedo, cells refined {st.check_refine}x{st.check_refine}", st.reference.analytic, sl, st.map_refined,
               direct=False, mesh=True)
-        timed("unchecked-direct masks", st.direct_unchecked, sl)
+        timed("unchecked-direct masks", st.reference.direct_unchecked, sl)
     r, rc = T["render"], C["render"]
     print(f"default study, epochs {a.first}..{a.first + a.epochs} (sunlit {np.mean(g.illumination[a.first:a.first + a.epochs] > 0):.2f}), "
           f"chunks of {o.chunk_epochs}; load average (1 min) {load0:.2f} on {os.cpu_count()} cores")

@@ -1,4 +1,4 @@
-"""Benchmark simcore.render.irradiance: ms per epoch for the 14 diodes at the sample counts that reach
+"""Benchmark simcore.render (the Renderer): ms per epoch for the 14 diodes at the sample counts that reach
 0.2 % (direct) and 1 % (albedo) relative standard error, and rays per second.
 
 Geometry: the thesis' tilt-20 / FOV-70 satellite (scenes/tilt20_fov70.toml and its
@@ -37,7 +37,7 @@ import time
 import numpy as np
 
 from simcore.constants import OMEGA_EARTH_RAD_S, R_EARTH_MEAN_M
-from simcore.render.irradiance import Renderer
+from simcore.render import Renderer
 
 MU_EARTH = 3.986004418e14  # m^3/s^2, IERS conventions (2010)
 
@@ -115,7 +115,7 @@ def raw_ray_test(mesh, diodes, n_rays, variant=None, seed=0):
     diodes' centres in uniform random directions over each one's hemisphere, in launches of the renderer's
     size; the rays are built before the timing (one launch's worth, traced again until ``n_rays``)."""
     from simcore._llvm import host_array, import_drjit, import_mitsuba
-    from simcore.render.irradiance import _MAX_LANES, choose_variant, occluder_scene
+    from simcore.render.launch import _MAX_LANES, choose_variant, occluder_scene
     dr, mi = import_drjit(), import_mitsuba()
     mi.set_variant(choose_variant(variant))
     scene = occluder_scene(mesh, mi)

@@ -35,7 +35,8 @@ LIMIT = 1.2                # issue 32: whole run / renderer alone
 # the renderer-alone process: the run's study, its renderer over the run's chunks, nothing else timed
 RENDER_ALONE = """
 import json, sys, time
-from simcore.pipeline.run import PreparedRun, RunOptions
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import PreparedRun
 from simcore.pipeline.store import chunk_ranges
 opts = RunOptions(duration_s={duration!r})
 st = PreparedRun(opts)

@@ -1,7 +1,7 @@
 """Spacecraft surface materials by the names an engineer uses, each a Mitsuba 3 BSDF dictionary.
 
 A configuration names a material per part (``[body] material``, ``[mount] material``,
-scenes/FORMAT.md); the renderer (:mod:`simcore.render.irradiance`) gives the part that BSDF and
+scenes/FORMAT.md); the renderer (:mod:`simcore.render.reflected`) gives the part that BSDF and
 path-traces the sunlight and Earth light it reflects onto the diodes (the ``reflected``
 component). Values are solar-spectrum (broadband) figures: the renderer runs Mitsuba's
 monochromatic variant, so one reflectance stands for the whole band a silicon photodiode sees.

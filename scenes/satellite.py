@@ -26,7 +26,7 @@ class DiodeSurfaces:
     ``apertures``: optional sequence of K ``simcore.shapes.aperture.WellAperture`` used only
     to shape the albedo sampling (the traced mesh decides what is blocked). ``windows``: optional
     sequence of K ``simcore.shapes.window.Window`` or None (a cover glass over the diode, traced per
-    sample: :meth:`simcore.render.irradiance.Renderer._through_window`); None, or all None: no window anywhere (the kernels
+    sample: :meth:`simcore.render.windows.CoverGlass._through_window`); None, or all None: no window anywhere (the kernels
     then run exactly the code they ran before windows existed).
     """
 

@@ -28,12 +28,12 @@ _EXPORTS = {
     # analytic model and renderer
     "albedo_cells": "simcore.radiometry.albedo",
     "BodyBox": "scenes.satellite", "diode_irradiance": "simcore.radiometry.analytic",
-    "DiodeSurfaces": "scenes.satellite", "Renderer": "simcore.render.irradiance",
+    "DiodeSurfaces": "scenes.satellite", "Renderer": "simcore.render",
     # sensor chain
     "DIODES": "simcore.sensor.chain", "SensorChain": "simcore.sensor.chain",
     # runs
-    "RunOptions": "simcore.pipeline.run", "execute": "simcore.pipeline.run", "open_run": "simcore.pipeline.run",
-    "check_run": "simcore.pipeline.run",
+    "RunOptions": "simcore.pipeline.options", "execute": "simcore.pipeline.run", "open_run": "simcore.pipeline.runfile",
+    "check_run": "simcore.pipeline.runfile",
     "run_errors": "simcore.pipeline.evaluate", "evaluate_run": "simcore.pipeline.evaluate",
     # studies
     "coverage_fractions": "simcore.studies.coverage", "coverage_map": "simcore.studies.coverage",

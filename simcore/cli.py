@@ -36,7 +36,8 @@ def _add_orbit_options(p, ephemeris=False):
 
 
 def _geometry(args):
-    from simcore.pipeline.run import RunOptions, study_geometry
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.schedule import study_geometry
     orbit, _, geometry = study_geometry(RunOptions(tle=args.tle, satellite=args.satellite, start=args.start,
                                                    duration_s=args.duration, step_s=args.step,
                                                    spin_rate_deg_s=args.spin_rate))
@@ -149,8 +150,8 @@ def _add_cloud_options(p, many=False):
 
 
 def run_options(args):
-    """Return the simcore.pipeline.run.RunOptions of parsed ``run`` arguments."""
-    from simcore.pipeline.run import RunOptions
+    """Return the simcore.pipeline.options.RunOptions of parsed ``run`` arguments."""
+    from simcore.pipeline.options import RunOptions
     samples = args.samples
     return RunOptions(
         config=args.config, tle=args.tle, satellite=args.satellite, orbit_file=args.orbit, eop=args.eop, start=args.start,
@@ -314,7 +315,8 @@ def cmd_export(args):
 
 def cmd_validate(args):
     """The rendered-vs-analytic report of a run file; exit status 1 outside tolerance."""
-    from simcore.pipeline.run import check_run, open_run, recompute_analytic
+    from simcore.pipeline.run import recompute_analytic
+    from simcore.pipeline.runfile import check_run, open_run
     if args.recompute_analytic:
         recompute_analytic(args.run, log=None if args.json else (lambda m: print(m, file=sys.stderr)))
     ds = open_run(args.run)
@@ -337,7 +339,7 @@ def cmd_validate(args):
 def _mekf_filter(args):
     """``sunsim estimate RUN.nc --filter mekf``: print the attitude-error summary (or JSON); exit status 0."""
     from simcore.pipeline.evaluate_attitude import DEFAULT_GYRO, DEFAULT_MAGNETOMETER, run_mekf, summary_lines
-    from simcore.pipeline.run import open_run
+    from simcore.pipeline.runfile import open_run
     from simcore.plots import plot_mekf
     from simcore.sensor.gyro import gyro_spec
     from simcore.sensor.magnetometer import magnetometer_spec
@@ -363,7 +365,7 @@ def _sunline_filter(args):
     """``sunsim estimate RUN.nc --filter sunline-ekf|sunline-ukf``: a sun-line filter
     (simcore.pipeline.evaluate_sunline) over a run file; print its summary (or JSON)."""
     from simcore.pipeline.evaluate_sunline import filter_run, parse_process_noise
-    from simcore.pipeline.run import open_run
+    from simcore.pipeline.runfile import open_run
     from simcore.sensor.errors import check_faults, parse_faults, parse_sensor_errors
     errors, faults = parse_sensor_errors(args.sensor_errors), parse_faults(args.faults)
     q_rate, q_sun = parse_process_noise(args.process_noise or "1e-13:0")
@@ -434,7 +436,7 @@ def cmd_estimate(args):
     if args.filter:
         return ESTIMATE_FILTERS[args.filter](args)
     from simcore.pipeline.evaluate import evaluate_run
-    from simcore.pipeline.run import open_run
+    from simcore.pipeline.runfile import open_run
     from simcore.sensor.chain import DIODES
     if args.diode not in DIODES:
         raise InvalidInputError(f"--diode {args.diode} is unknown; use one of {', '.join(sorted(DIODES))}")
@@ -467,7 +469,7 @@ def cmd_estimate(args):
 
 def cmd_sweep(args):
     """Configurations x start dates x spin rates x seeds on Dask, into one dataset."""
-    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.options import RunOptions
     from simcore.pipeline.sweep import sweep
     samples = args.samples
     base = RunOptions(tle=args.tle, satellite=args.satellite, duration_s=args.duration, step_s=args.step,
@@ -504,7 +506,7 @@ def _sensor_errors_help(name):
 
 def cmd_spectral_check(args):
     """Spectral Monte Carlo (directions x wavelengths) vs the analytic albedo on each diode's band map: z table."""
-    from simcore.render import spectral_check as sc
+    from simcore.pipeline import spectral_check as sc
     if not 1 <= args.epochs <= sc.SUNLIT_EPOCHS:
         raise InvalidInputError(f"--epochs must be 1 to {sc.SUNLIT_EPOCHS} (the default orbit is sunlit for "
                                 f"{sc.SUNLIT_EPOCHS} epochs {sc.DEFAULT_STEP_S:g} s apart from {sc.DEFAULT_START}), "

@@ -2,7 +2,9 @@
 with seed 0 and checked against the independent analytic model on every diode-epoch."""
 import numpy as np
 
-from simcore.pipeline.run import RunOptions, check_run, execute
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import execute
+from simcore.pipeline.runfile import check_run
 
 
 def test_one_full_orbit_passes_the_analytic_check(tmp_path):

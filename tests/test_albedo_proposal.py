@@ -1,8 +1,8 @@
 """The albedo proposal on high-contrast maps: its bin weights cannot miss a bright cell that lies between the bin's
-corners (simcore.render.irradiance: reach_levels, corner_reach, _BOUND_SHARE, _BOUND_SHARE_GLINT).
+corners (simcore.render.albedo: reach_levels, corner_reach, _BOUND_SHARE, _BOUND_SHARE_GLINT).
 
 Oracles: great-circle distances between points drawn in the map's cells and on the bins' ground (numpy, independent
-of the tables' construction), and the analytic albedo (``PreparedRun.analytic``, cells refined 6 x 6) for the
+of the tables' construction), and the analytic albedo (``CheckReference.analytic``, cells refined 6 x 6) for the
 rendered z-scores.
 """
 import json
@@ -14,8 +14,9 @@ import xarray as xr
 from simcore.constants import R_EARTH_MEAN_M
 from simcore.environment.maps import ReflectivityMap
 from simcore.pipeline.check import Z_QUARTILE, normal_scores
-from simcore.pipeline.run import PreparedRun, RunOptions
-from simcore.render.irradiance import _N_P, _N_T, corner_reach, reach_level, reach_levels
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import PreparedRun
+from simcore.render.albedo import _N_P, _N_T, corner_reach, reach_level, reach_levels
 
 
 def _unit(lat, lon):
@@ -86,9 +87,9 @@ def test_bright_cells_between_bin_corners_keep_z_standard_normal():
     v[np.random.default_rng(7).random(v.shape) < 0.1] = 0.8
     centres = lambda e: 0.5 * (np.asarray(e)[1:] + np.asarray(e)[:-1])  # noqa: E731
     study.map = ReflectivityMap.from_array(v, centres(m0.lat_edges_deg), centres(m0.lon_edges_deg), name="bright cells")
-    study._renderer = None
+    study = study.with_renderer(None)                   # a renderer of the new map
     g, sl = study.geometry, slice(0, len(study.epochs))
-    ref = study.analytic(sl, study.map.refined(6), direct=False).albedo_w_m2
+    ref = study.reference.analytic(sl, study.map.refined(6), direct=False).albedo_w_m2
     z = []
     for seed in range(8):
         res = study.renderer.render(g.sun_dir_body, g.earth_center_body_m, g.R_ecef_from_body, study.sun_scale(sl),
@@ -112,9 +113,9 @@ def test_glint_between_overcast_corners_keeps_the_run_check_passing(tmp_path, mo
     # glint's bound at full share it passes; the deliberately wrong input, a quarter share as without the glint,
     # gives 7 diode-epochs at |z| > 4 of 711 (expected 0.05; P ~ 1e-12) and fails.
     from simcore.cli import main
-    from simcore.render import irradiance
+    from simcore.render import albedo
     if share is not None:
-        monkeypatch.setattr(irradiance, "_BOUND_SHARE_GLINT", share)
+        monkeypatch.setattr(albedo, "_BOUND_SHARE_GLINT", share)
     out = tmp_path / "c.nc"
     rc = main(["run", "--config", "tilt20_fov70", "--map", "band", "--glint", "7", "--clouds", "1", "--dead", "0",
                "--solar-flux", "thesis", "--start", "2016-07-02T16:44:00Z", "--duration", "120", "--seed", "2",

@@ -275,7 +275,8 @@ def test_pairwise_direct_with_other_responses(rng):
 
 def test_diode_irradiance_direct_over_an_eclipse_exit_equals_the_previous_code():
     # The default study's orbit across the exit from the Earth's shadow: umbra (skipped), penumbra, sunlit.
-    from simcore.pipeline.run import PreparedRun, RunOptions
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import PreparedRun
     st = PreparedRun(RunOptions(duration_s=2000.0))
     g = st.geometry
     lit = g.illumination

@@ -5,8 +5,9 @@ import pytest
 import trimesh
 
 from scenes.meshes import build_satellite_mesh
-from simcore.pipeline.run import PreparedRun, RunOptions
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import PreparedRun
+from simcore.render import DiodeSurfaces, Renderer
 from simcore.shapes.aperture import WellAperture
 from simcore.studies import aperture as A
 from walls_oracle_4277e88 import ORACLE
@@ -39,10 +40,10 @@ def test_plugs_are_black_and_change_no_all_black_render():
     plugs = [n for n in mesh.metadata["parts"] if n.startswith("plug_")]
     assert len(plugs) == study.config.n_diodes and all(mesh.metadata["materials"][n] == "black" for n in plugs)
     with_plugs = study.render_chunk(0, len(study.epochs))
-    study._renderer = Renderer(
+    study = study.with_renderer(Renderer(
         DiodeSurfaces.from_config(study.config), _without_plugs(mesh), reflectivity=study.map.values_south_first,
         lon_west_deg=float(study.map.lon_edges_deg[0]), e_sun_w_m2=study.opts.e_sun_w_m2,
-        sun_angular_radius_rad=study.sun_angular_radius_rad)
+        sun_angular_radius_rad=study.sun_angular_radius_rad))
     without = study.render_chunk(0, len(study.epochs))
     lit = with_plugs["rendered"][..., :2]
     assert (lit[..., 0] > 0).sum() > 100 and (lit[..., 1] > 0).sum() > 100

@@ -30,7 +30,8 @@ def test_unknown_filter_is_refused_by_the_parser(capsys):
 
 @pytest.fixture(scope="module")
 def default_orbit(tmp_path_factory):
-    from simcore.pipeline.run import RunOptions, execute
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import execute
     path, _, _ = execute(RunOptions(output=str(tmp_path_factory.mktemp("mekf") / "orbit.nc")), progress=False)
     return path
 
@@ -60,7 +61,7 @@ def test_default_orbit_mekf_with_bmg160_meets_the_issue_targets(default_orbit, c
 
 def test_mekf_on_rendered_data_converges_from_30_deg(default_orbit):
     from simcore.pipeline.evaluate_attitude import run_mekf
-    from simcore.pipeline.run import open_run
+    from simcore.pipeline.runfile import open_run
     res = run_mekf(open_run(default_orbit), default_orbit, gyro="BMG160", initial_error_deg=30.0)
     assert res["summary"]["initial_error_deg"] == pytest.approx(30.0, abs=1e-6)
     t_conv = res["summary"]["time_to_converge_s"]

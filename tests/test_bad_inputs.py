@@ -146,7 +146,7 @@ def tripwire(monkeypatch):
     import simcore.pipeline.evaluate_sunline
     import simcore.pipeline.run
     import simcore.pipeline.sweep
-    import simcore.render.spectral_check
+    import simcore.pipeline.spectral_check
     import simcore.studies.attitude
     import simcore.studies.coverage
     import simcore.studies.earth_band
@@ -159,7 +159,7 @@ def tripwire(monkeypatch):
     for module, name in [(simcore.pipeline.run.PreparedRun, "render_chunk"), (simcore.picture.view, "view_picture"),
                          (simcore.pipeline.cluster, "run_tasks"), (simcore.pipeline.evaluate, "evaluate_run"),
                          (simcore.pipeline.evaluate_sunline, "run_sunline_filter"), (mekf.MEKF, "__init__"),
-                         (simcore.pipeline.sweep, "sweep"), (simcore.render.spectral_check, "compare"),
+                         (simcore.pipeline.sweep, "sweep"), (simcore.pipeline.spectral_check, "compare"),
                          (simcore.studies.attitude, "ensure_run"), (simcore.studies.coverage, "coverage_fractions"),
                          (simcore.studies.earth_band, "earth_study"), (simcore.studies.reproduce, "reproduce"),
                          (simcore.studies.response, "traced_response"), (simcore.studies.flight, "predict"),

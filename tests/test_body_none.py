@@ -11,7 +11,8 @@ from simcore.environment.epochs import Epochs
 from simcore.environment.geometry import compute_geometry
 from simcore.environment.history import AttitudeHistory
 from simcore.environment.orbit import Orbit
-from simcore.pipeline.run import RunOptions, execute
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import execute
 
 START = "2016-07-02T00:45:00Z"
 TOML = '''name = "bare"

@@ -202,7 +202,7 @@ def test_a_run_plan_takes_the_aem_samples_and_the_oem_orbit(tmp_path):
     # AEM's trusted samples, its attitude the AEM's, its orbit the OEM's (schedule.plan, no rendering here)
     from simcore.environment.ephemeris import write_orbit_oem
     from simcore.environment.orbit import Orbit
-    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.options import RunOptions
     from simcore.pipeline.schedule import plan
     start = "2016-07-02T00:30:00Z"
     oem = tmp_path / "o.oem"

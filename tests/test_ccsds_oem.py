@@ -209,7 +209,8 @@ def test_non_monotonic_epochs_and_wrong_columns_get_one_clear_line(tmp_path, cap
 def test_a_run_on_an_oem_of_the_sgp4_orbit_reproduces_the_tle_run(tmp_path):
     # Acceptance (issue 34): the OEM written from sunsim's SGP4 orbit at 60 s with Lagrange degree 7 drives the
     # run; same seed: positions within 1 m, total irradiance within 1e-3 relative. 10 min at 10 s, sunlit.
-    from simcore.pipeline.run import RunOptions, execute
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import execute
     oem = tmp_path / "estcube.oem"
     write_orbit_oem(oem, Orbit.default(), Epochs.range("2016-07-02T00:25:00Z", 1200, 60.0), frame="EME2000",
                     degree=7)
@@ -242,7 +243,7 @@ def test_period_of_an_ephemeris_is_the_inertial_keplerian_one(tmp_path, frame):
 
 
 def test_run_geometry_takes_earth_orientation_for_an_itrf_ephemeris(tmp_path, capsys):
-    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.options import RunOptions
     from simcore.pipeline.schedule import study_geometry
     path = tmp_path / "itrf.oem"
     write_orbit_oem(path, Orbit.default(), Epochs.range("2016-07-01T23:55:00Z", 1200, 60.0), frame="ITRF")

@@ -16,8 +16,10 @@ import pytest
 from scenes.meshes import build_satellite_mesh
 from simcore import cli
 from simcore.pipeline.check import Z_QUARTILE, normal_scores
-from simcore.pipeline.run import PreparedRun, RunOptions, build_dataset, check_run
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import PreparedRun
+from simcore.pipeline.runfile import build_dataset, check_run
+from simcore.render import DiodeSurfaces, Renderer
 
 START, SPAN_S = "2016-03-20T12:00:00", 600.0
 RENDERED = ("rendered", "rendered_se", "rendered_dof", "samples", "direct_plain")
@@ -81,10 +83,10 @@ def test_a_north_south_mirrored_map_fails(base, tmp_path):
     study, data = base
     mirrored = PreparedRun(study.opts)
     cfg = mirrored.config
-    mirrored._renderer = Renderer(
+    mirrored = mirrored.with_renderer(Renderer(
         DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), reflectivity=study.map.values_south_first[::-1],
         lon_west_deg=float(study.map.lon_edges_deg[0]), e_sun_w_m2=study.opts.e_sun_w_m2,
-        sun_angular_radius_rad=study.sun_angular_radius_rad)
+        sun_angular_radius_rad=study.sun_angular_radius_rad))
     wrong = mirrored.render_chunk(0, len(study.epochs))
     bad = dict(data, **{k: wrong[k] for k in RENDERED})
     rc, report = _validate(tmp_path, study, bad, "mirrored")
@@ -99,7 +101,7 @@ def test_an_attitude_rotated_by_half_a_degree_fails(base, tmp_path):
     R = np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K          # body vectors -> rotated body
     g = study.geometry
     turned = PreparedRun(study.opts)
-    turned._renderer = study.renderer
+    turned = turned.with_renderer(study.renderer)
     turned.geometry = dataclasses.replace(g, R_gcrs_from_body=g.R_gcrs_from_body @ R.T)
     wrong = turned.render_chunk(0, len(study.epochs))
     bad = dict(data, **{k: wrong[k] for k in RENDERED})
@@ -118,8 +120,8 @@ def test_z_scores_are_standard_normal_over_seeds(adaptive):
     n = len(study.epochs)
     g = study.geometry
     sl = slice(0, n)
-    ref_d = study.analytic(sl, study.map).direct_w_m2
-    ref_a = study.analytic(sl, study.map_refined, direct=False).albedo_w_m2
+    ref_d = study.reference.analytic(sl, study.map).direct_w_m2
+    ref_a = study.reference.analytic(sl, study.map_refined, direct=False).albedo_w_m2
     z, num, den = [], 0.0, 0.0
     for seed in range(3):
         res = study.renderer.render(
@@ -151,9 +153,9 @@ def test_stratum_pairs_are_independent_so_the_pooled_spread_is_one():
     centres = lambda e: 0.5 * (np.asarray(e)[1:] + np.asarray(e)[:-1])  # noqa: E731
     study.map = ReflectivityMap.from_array(np.full(np.shape(m0.values), 0.3), centres(m0.lat_edges_deg),
                                            centres(m0.lon_edges_deg), name="uniform 0.3")
-    study._renderer = None
+    study = study.with_renderer(None)                   # a renderer of the new map
     g, sl = study.geometry, slice(0, len(study.epochs))
-    ref = study.analytic(sl, study.map.refined(6), direct=False).albedo_w_m2
+    ref = study.reference.analytic(sl, study.map.refined(6), direct=False).albedo_w_m2
     d, se = [], []
     for seed in (0, 1):
         res = study.renderer.render(g.sun_dir_body, g.earth_center_body_m, g.R_ecef_from_body, study.sun_scale(sl),

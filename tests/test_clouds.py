@@ -162,7 +162,7 @@ def test_the_field_correlation_at_one_correlation_length_is_the_gaussian_spectru
 
 
 def test_runs_without_clouds_keep_their_settings_digest():
-    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.options import RunOptions
     assert "clouds" not in RunOptions().spec() and "cloud_scale_km" not in RunOptions().spec()
     spec = RunOptions(reflectivity="ceres2018-all", clouds=3).spec()
     assert spec["clouds"] == 3 and spec["cloud_scale_km"] == 500.0       # the default, named or not: one digest
@@ -193,7 +193,8 @@ def test_a_cloudy_run_passes_its_analytic_check_and_records_the_weather(tmp_path
     assert json.loads(ds.attrs["cloud_model"])["clear_sky_map"] == "CERES 2018 clear-sky"
     assert "cloud weather seed 1" in ds.attrs["reflectivity_map"]
     # the run's map (renderer and analytic check alike) is realisation 1, not the climatology
-    from simcore.pipeline.run import PreparedRun, options_of
+    from simcore.pipeline.run import PreparedRun
+    from simcore.pipeline.runfile import options_of
     study = PreparedRun(options_of(ds, str(tmp_path / "c.nc")))
     np.testing.assert_array_equal(study.map.values, CloudWeather.for_map("ceres2018-all").realise(1).values)
     assert np.mean(study.map.values != ALL) > 0.9
@@ -254,7 +255,8 @@ def test_the_reference_of_a_cloudy_run_resolves_the_shadow_edges_that_2x2_misses
     # by chance: 2.501 and 2.501 at 19:03:33Z; 4 x 4 2.632, 8 x 8 2.699, rendered 2.687). The deliberately wrong
     # input, the cloudy run refined 2 x 2 as the others, fails.
     from simcore.pipeline import run as run_module
-    from simcore.pipeline.run import PreparedRun, RunOptions
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import PreparedRun
     if refine is not None:
         monkeypatch.setattr(run_module, "CHECK_REFINE_CLOUDS", refine)
     study = PreparedRun(RunOptions(config="tilt20_fov70", reflectivity="band", glint=7.0, clouds=1, dead=[0],
@@ -267,8 +269,8 @@ def test_the_reference_of_a_cloudy_run_resolves_the_shadow_edges_that_2x2_misses
             g.sun_dir_body[sl], g.earth_center_body_m[sl], g.R_ecef_from_body[sl], study.sun_scale(sl),
             sun_dir_earth_body=study.earth_sun_dir_body(sl), earth_sun_scale=study.earth_sun_scale(sl), seed=seed,
             epoch_offset=t, albedo_samples=65536, reflected=False).albedo_w_m2[0, k] for seed in (100, 101)])
-        ref = study.analytic(sl, study.map_refined, direct=False, mesh=True).albedo_w_m2[0, k]
-        ref2 = study.analytic(sl, study.map.refined(2), direct=False, mesh=True).albedo_w_m2[0, k]
+        ref = study.reference.analytic(sl, study.map_refined, direct=False, mesh=True).albedo_w_m2[0, k]
+        ref2 = study.reference.analytic(sl, study.map.refined(2), direct=False, mesh=True).albedo_w_m2[0, k]
         assert abs(rendered - ref2) > 0.15, (t, k, rendered, ref2)
         closer.append(abs(rendered - ref) < 0.5 * abs(rendered - ref2))
     assert all(closer) == (refine is None), closer

@@ -28,7 +28,8 @@ def test_a_three_digit_normal_is_normalised_with_a_note(tmp_path):
 
 
 def test_the_note_reaches_the_run(tmp_path):
-    from simcore.pipeline.run import RunOptions, prepare
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import prepare
     cfg = _cfg(tmp_path, PD6)
     study = prepare(RunOptions(config=cfg.source, start="2016-07-02T00:45:00Z", duration_s=2))
     assert any("normalised" in n for n in study.notes)

@@ -79,7 +79,8 @@ def test_run_options_dynamics_drive_the_study_attitude():
     # sunsim run --dynamics: the study's attitude is the torque-free motion from --spin-rate about the
     # tumble axis; with a spherical inertia that is exactly the constant tumble (closed form).
     from simcore.environment.attitude import tumble
-    from simcore.pipeline.run import RunOptions, study_geometry
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.schedule import study_geometry
     _, att, _ = study_geometry(RunOptions(dynamics="0.02,0.02,0.02", duration_s=120.0))
     ref = tumble(att.t_s)
     assert _angle_between_rad(att.q_gcrs_from_body, ref.q_gcrs_from_body).max() < 1e-10

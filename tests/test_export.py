@@ -14,7 +14,8 @@ from simcore.sensor.chain import DIODES
 
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory):
-    from simcore.pipeline.run import RunOptions, execute
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import execute
     path = tmp_path_factory.mktemp("export") / "run.nc"
     execute(RunOptions(start="2016-07-02T00:45:00Z", duration_s=80, step_s=10.0, rel_se_direct=None,
                        rel_se_albedo=None, direct_samples=256, albedo_samples=256, dead=(4,), output=str(path)))

@@ -16,7 +16,8 @@ import xarray as xr
 from simcore.constants import AU_M
 from simcore.environment.maps import uniform_map
 from simcore.pipeline.export import basilisk_values
-from simcore.pipeline.run import RunOptions, study_geometry
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.schedule import study_geometry
 from simcore.radiometry.albedo import albedo_cells
 
 E_1AU = 1361.0                    # sunsim's physical flux and Basilisk's SOLAR_FLUX_EARTH

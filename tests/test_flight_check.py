@@ -70,7 +70,8 @@ def _write_telemetry(folder, ds, *, reverse=False):
 def synthetic(tmp_path_factory):
     """A synthetic OPS-SAT: its scene, a 20-min run (seed 7, CERES all-sky; torque-free tumbling, so that the
     Sun crosses the diodes from many directions) and its telemetry files."""
-    from simcore.pipeline.run import RunOptions, execute
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import execute
     folder = tmp_path_factory.mktemp("synthetic")
     scene = _scene(folder / "synthetic.toml")
     opts = RunOptions(config=str(scene), tle=str(OPSSAT / "tle_2020-11-06.txt"), start=START,

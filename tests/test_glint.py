@@ -247,7 +247,8 @@ CALM = ["--config", "tilt0_fov90", "--map", "uniform:0", "--start", "2016-07-02T
 
 
 def test_a_calm_sea_run_checks_on_cells_that_resolve_its_spot():
-    from simcore.pipeline.run import PreparedRun, RunOptions
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import PreparedRun
     opts = RunOptions(config="tilt0_fov90", reflectivity="uniform:0", start="2016-07-02T15:27:00Z", duration_s=2.0)
     assert PreparedRun(dataclasses.replace(opts, glint=0.0)).check_refine == 8     # was 2, as without glint
     assert PreparedRun(dataclasses.replace(opts, glint=7.0)).check_refine == 2
@@ -420,7 +421,7 @@ def _glint_epochs():
 
 def _rendered_glint(wind, index, ocean_planet, i, geo):
     """Return (value, se) (3,) of the rendered glint alone (no diffuse map) on epoch ``i``'s bare diodes, W/m^2."""
-    from simcore.render.irradiance import DiodeSurfaces, Renderer
+    from simcore.render import DiodeSurfaces, Renderer
     r_sat, r_sun, rot, frames = geo
     sea = np.ones((180, 288)) if ocean_planet else None
     rend = Renderer(DiodeSurfaces(np.zeros((3, 3)), frames[i], np.array([2.65e-3, 2.65e-3])), None,
@@ -512,7 +513,7 @@ def _listing(folder):
 
 
 def test_runs_without_glint_keep_their_settings_digest():
-    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.options import RunOptions
     assert "glint" not in RunOptions().spec()
     assert RunOptions(glint=7.0).spec()["glint"] == 7.0
 
@@ -525,7 +526,8 @@ def test_a_glint_run_passes_its_analytic_check_which_sees_the_glint(tmp_path, ma
     assert v.returncode == 0, v.stdout + v.stderr
     assert json.loads(v.stdout)["verdict"] == "PASS"
     import xarray as xr
-    from simcore.pipeline.run import PreparedRun, options_of
+    from simcore.pipeline.run import PreparedRun
+    from simcore.pipeline.runfile import options_of
     ds = xr.load_dataset(tmp_path / "g.nc")
     assert ds.attrs["glint_wind_m_s"] == 7.0 and ds.attrs["glint_water_index"] == 1.33
     assert ds.attrs["glint_mean_square_slope"] == pytest.approx(0.003 + 0.00512 * 7)   # Cox & Munk 1954
@@ -534,8 +536,8 @@ def test_a_glint_run_passes_its_analytic_check_which_sees_the_glint(tmp_path, ma
     study = PreparedRun(opts)
     bare = PreparedRun(dataclasses.replace(opts, glint=None))
     sl = slice(0, len(study.epochs))
-    with_glint = study.analytic(sl, study.map, direct=False).albedo_w_m2
-    without = bare.analytic(sl, bare.map, direct=False).albedo_w_m2
+    with_glint = study.reference.analytic(sl, study.map, direct=False).albedo_w_m2
+    without = bare.reference.analytic(sl, bare.map, direct=False).albedo_w_m2
     assert (with_glint - without).max() > 5.0                                     # W/m^2
     rendered, se = ds["irradiance"].values[..., 1], ds["irradiance_se"].values[..., 1]
     ok = se > 0

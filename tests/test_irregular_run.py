@@ -10,7 +10,8 @@ from simcore.environment.attitude import tumble
 from simcore.environment.epochs import Epochs
 from simcore.environment.history import AttitudeHistory
 from simcore.pipeline import run as R
-from simcore.pipeline.run import PreparedRun, RunOptions, execute
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import PreparedRun, execute
 
 START = "2016-07-02T00:45:00Z"            # sunlit (tests/test_run.py's SMALL)
 FAST = dict(rel_se_direct=None, rel_se_albedo=None, direct_samples=256, albedo_samples=256, seed=5)

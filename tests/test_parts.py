@@ -13,7 +13,7 @@ import xarray as xr
 
 from scenes.config import SatelliteConfig
 from simcore.cli import main
-from simcore.pipeline.run import check_run
+from simcore.pipeline.runfile import check_run
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "scenes" / "examples"
 BASE = """name = "t"

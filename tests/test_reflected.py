@@ -1,4 +1,4 @@
-"""Issue 13: the path-traced ``reflected`` component of simcore.render.irradiance against independent oracles.
+"""Issue 13: the path-traced ``reflected`` component of simcore.render (simcore.render.reflected) against independent oracles.
 
 Every Monte-Carlo assertion is a z-test |estimate - oracle| < 3.3 standard errors (the renderer's own
 standard error from its pairs of samples per stratum): a false-alarm rate of 1e-3 per value for a normal
@@ -15,7 +15,7 @@ from scipy.integrate import quad
 from scenes.config import SatelliteConfig
 from scenes.meshes import build_satellite_mesh
 from simcore.constants import R_EARTH_MEAN_M
-from simcore.render.irradiance import SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer
+from simcore.render import SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer
 
 R = R_EARTH_MEAN_M
 E = 1000.0                       # W/m^2: any value; the oracles scale with it

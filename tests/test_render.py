@@ -1,4 +1,4 @@
-"""Tests of simcore.render.irradiance: radiometric identities first (bare plate, aperture overlap,
+"""Tests of simcore.render (the Renderer): radiometric identities first (bare plate, aperture overlap,
 constant radiance, albedo quadrature), then precision, determinism, adaptivity and misuse.
 
 Monte-Carlo results are compared with z-scores against their own standard errors,
@@ -17,8 +17,8 @@ import simcore
 from simcore._llvm import import_drjit
 from simcore.shapes.aperture import CircularWell, WellAperture, diode_frame
 from simcore.constants import BPW34_AREA_M2, E_SUN_W_M2, R_EARTH_MEAN_M
-from simcore.render.irradiance import (SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer, RenderResult,
-                            choose_variant, render)
+from simcore.render import (SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer, RenderResult, choose_variant,
+                            render)
 
 A = float(np.sqrt(BPW34_AREA_M2))
 R = R_EARTH_MEAN_M
@@ -89,7 +89,7 @@ def test_missing_libllvm_raises_llvm_not_found_in_a_subprocess():
         code = (
             "import simcore\n"
             "from simcore._llvm import LLVMNotFoundError\n"
-            "from simcore.render.irradiance import choose_variant\n"
+            "from simcore.render import choose_variant\n"
             "try:\n"
             f"    choose_variant({request})\n"
             "except LLVMNotFoundError as exc:\n"
@@ -475,7 +475,7 @@ def test_a_ray_grazing_an_edge_reads_the_same_whatever_rays_share_its_packet():
     # Embree's packet traversal decided one ray that grazes an edge differently with other rays beside it: on the
     # thesis layout along benchmarks/bench_render.py's synthetic orbit, diode 11 at epoch 1484 read 98.6575 W/m^2
     # rendered with epochs 1472-1535 in one batch and 98.6384 with 1408-1535 (one lane of 28 224 flipped). Each
-    # task's lanes now start on a packet boundary (irradiance._PACKET): the batches give the same numbers.
+    # task's lanes now start on a packet boundary (simcore.render.launch._PACKET): the batches give the same numbers.
     import runpy
     from pathlib import Path
     from scenes.config import SatelliteConfig
@@ -525,10 +525,10 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
     # Deliberately wrong input: the rule told the error falls as n^(-1) (power 1): the mean reads ~1.6 and fails.
     # (Was: every task's se <= its target, which held for seed 3 by luck, at 0.999 on one task; cuda_ad_mono's
     # other float rounding put that task at > 1 on an H100.)
-    from simcore.render import irradiance
+    from simcore.render import sampling
     if wrong:
-        shortfall = irradiance._shortfall
-        monkeypatch.setattr(irradiance, "_shortfall",
+        shortfall = sampling._shortfall
+        monkeypatch.setattr(sampling, "_shortfall",
                             lambda m, se, n, rel, floor, power: shortfall(m, se, n, rel, floor, 1))
     ds, mesh = _scene_for_determinism()
     rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3))
@@ -542,7 +542,8 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
     # with raw counts only, exactly one round is traced (split 4:1 with the aperture hint,
     # each part rounded up to its stratification); direct tasks that a shadow edge of the mesh crosses
     # take _EDGE_BOOST times the count
-    from simcore.render.irradiance import _EDGE_BOOST, _direct_size
+    from simcore.render.direct import _EDGE_BOOST
+    from simcore.render.sampling import _direct_size
     raw = rend.render(sun, earth, rot, seed=3, direct_samples=256, albedo_samples=128)
     split = lambda n: int(_direct_size(n * 4 // 5) + _direct_size(n // 5))  # noqa: E731
     assert split(256) == 4 * 8 ** 2 + 4 * 4 ** 2
@@ -613,9 +614,9 @@ def test_a_sliver_of_the_solar_disc_is_not_missed(boosted, monkeypatch):
     # samples (_EDGE_BOOST): over 30 seeds every |z| < 4.5 (false alarm 30 x 7e-6 = 2e-4 for t with the
     # error's ~10^4 degrees of freedom). Without the boost (the deliberately wrong renderer), 30 seeds
     # all meeting the sliver has probability (1 - e^-1.2)^30 ~ 1e-5: some |z| exceeds 10.
-    import simcore.render.irradiance as irr
+    import simcore.render.direct as direct
     if not boosted:
-        monkeypatch.setattr(irr, "_EDGE_BOOST", 1)
+        monkeypatch.setattr(direct, "_EDGE_BOOST", 1)
     a, L = SUN_ANGULAR_RADIUS_RAD, 20.0
     y_edge = L * a * (1.0 - 0.0141)                    # a chord at 0.9859 a: ~0.1 % of the disc
     plate = np.array([[-30.0, y_edge, L], [30.0, y_edge, L], [30.0, y_edge + 60.0, L], [-30.0, y_edge + 60.0, L]])

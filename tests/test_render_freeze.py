@@ -1,4 +1,4 @@
-"""The renderer's frozen kernels (drjit.freeze, simcore.render.irradiance.Renderer._run) give what tracing gives.
+"""The renderer's frozen kernels (drjit.freeze, simcore.render.launch.Launcher._run) give what tracing gives.
 
 The oracle is Dr.Jit's ordinary path: the same kernels traced anew at every launch (freezing switched off with
 ``JitFlag.KernelFreezing``). A replay runs the recorded kernels on new inputs of other sizes (other epochs, task
@@ -17,7 +17,7 @@ import pytest
 from scenes.config import SatelliteConfig
 from scenes.meshes import build_satellite_mesh
 from simcore._llvm import import_drjit
-from simcore.render.irradiance import SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer
+from simcore.render import SUN_ANGULAR_RADIUS_RAD, DiodeSurfaces, Renderer
 
 VARIANT = "llvm_ad_mono"       # the variant that records and replays
 
@@ -173,9 +173,9 @@ def test_a_constant_kernel_traced_at_every_launch_still_has_its_lanes(monkeypatc
     # counter too: unanchored, the folded constant came back as one value for a launch's 1024 lanes (IndexError in
     # _task_mean_var, seen on an H100). Here the CPU variant is made to trace every launch. Oracle as above.
     from simcore.constants import E_SUN_W_M2
-    from simcore.render import irradiance
+    from simcore.render import launch
     from simcore.shapes.aperture import diode_frame
-    monkeypatch.setattr(irradiance, "_FREEZE_VARIANTS", ())
+    monkeypatch.setattr(launch, "_FREEZE_VARIANTS", ())
     ds = DiodeSurfaces(np.zeros((1, 3)), diode_frame(np.array([0.0, 0.0, 1.0]))[None], [0.01, 0.01])
     th = np.radians(np.arange(0, 90))
     sun = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)

@@ -91,7 +91,8 @@ def test_corrupt_and_foreign_run_files_are_refused(tmp_path):
 def test_a_user_attitude_history_drives_the_study(tmp_path):
     # A history holding the body at a fixed 90 deg turn about GCRS z: body x must point along GCRS y at
     # every epoch (the quaternion (cos 45, 0, 0, sin 45) rotates x onto y).
-    from simcore.pipeline.run import RunOptions, PreparedRun
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import PreparedRun
     csv = tmp_path / "att.csv"
     q = [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)]
     csv.write_text("t_s,qw,qx,qy,qz\n" + "".join(f"{t},{q[0]},{q[1]},{q[2]},{q[3]}\n" for t in (0.0, 100.0)))
@@ -165,7 +166,8 @@ def test_an_attitude_file_with_another_time_origin_starts_at_the_run_start(tmp_p
     # Attitude.from_file promises "any origin": rows at t = 1000 .. 1100 s describe the run's first 100 s.
     # The history turns about GCRS z at 0.01 rad/s from the identity, so body x must lie at the angle
     # 0.01 t in the GCRS x-y plane at run time t (SLERP is exact for a constant-rate turn about a fixed axis).
-    from simcore.pipeline.run import RunOptions, PreparedRun
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import PreparedRun
     w = 0.01
     csv = tmp_path / "att.csv"
     rows = [(1000.0 + t, np.cos(w * t / 2), 0.0, 0.0, np.sin(w * t / 2)) for t in np.arange(0.0, 101.0, 10.0)]
@@ -181,6 +183,7 @@ def test_a_partial_run_of_an_older_chunk_layout_is_refused_before_any_work(tmp_p
     # (here: one array removed) must not be mixed with new ones: one line, exit 2, nothing rendered.
     from simcore import cli
     from simcore.pipeline import run as R
+    from simcore.pipeline.runfile import CHUNK_ARRAYS
     out = str(tmp_path / "old.nc")
     real, calls = R.PreparedRun.render_chunk, []
 
@@ -189,7 +192,7 @@ def test_a_partial_run_of_an_older_chunk_layout_is_refused_before_any_work(tmp_p
             raise KeyboardInterrupt
         calls.append(start)
         data = real(self, start, stop)
-        assert set(data) == set(R.CHUNK_ARRAYS)         # the layout the resume check expects
+        assert set(data) == set(CHUNK_ARRAYS)         # the layout the resume check expects
         return data
     monkeypatch.setattr(R.PreparedRun, "render_chunk", stop_after_two)
     assert cli.main(SMALL + ["-o", out]) != 0                # "sunsim: interrupted"

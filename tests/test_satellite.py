@@ -82,7 +82,7 @@ def _rotations(n, seed):
 
 
 def test_from_scene_renders_bit_identically_to_the_hand_assembly(sat):
-    from simcore.render.irradiance import Renderer
+    from simcore.render import Renderer
     rng = np.random.default_rng(3)
     # a north-first map whose column 0 starts at 175 W, with a glint on a sea given in the map's own row order
     lat = np.arange(89.5, -90.0, -1.0)
@@ -108,7 +108,7 @@ def test_from_scene_renders_bit_identically_to_the_hand_assembly(sat):
 
 
 def test_from_scene_diodes_picks_the_lit_diodes_and_keeps_the_mesh(sat):
-    from simcore.render.irradiance import Renderer, render
+    from simcore.render import Renderer, render
     one = Renderer.from_scene(sat, diodes=[3], e_sun_w_m2=1.0)
     assert one.diodes.count == 1
     np.testing.assert_array_equal(one.diodes.positions_m[0], sat.config.positions_m[3])

@@ -123,7 +123,8 @@ def test_a_flat_band_still_gives_ceres_and_with_glint_ceres_less_its_specular_pa
 
 
 def test_a_glint_run_renders_the_map_without_the_specular_part():
-    from simcore.pipeline.run import PreparedRun, RunOptions
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import PreparedRun
     opts = RunOptions(reflectivity="band-clear", duration_s=2.0, glint=7.0)
     with_glint = PreparedRun(opts)
     without = PreparedRun(dataclasses.replace(opts, glint=None))
@@ -157,7 +158,8 @@ def test_sea_ice_share_where_the_ice_is_and_is_not():
 def test_glint_only_on_open_water():
     # a glint run's sea is GSHHG's less the ice: north of 80 N much less than the sea there (0.91 of the cells;
     # the old glint took all of it), the tropics' open ocean untouched
-    from simcore.pipeline.run import PreparedRun, RunOptions
+    from simcore.pipeline.options import RunOptions
+    from simcore.pipeline.run import PreparedRun
     study = PreparedRun(RunOptions(reflectivity="uniform:0", duration_s=2.0, glint=7.0))
     m = study.map
     sea, glint_sea = ocean_fraction(m), study.glint.sea

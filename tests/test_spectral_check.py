@@ -1,4 +1,4 @@
-"""Tests of simcore.render.spectral_check: the spectral Monte Carlo (directions x wavelengths, class shares and
+"""Tests of simcore.pipeline.spectral_check: the spectral Monte Carlo (directions x wavelengths, class shares and
 class spectra, Mitsuba's llvm_ad_spectral) against the analytic model on the band maps.
 
 Oracles: the band maps' own construction (simcore.radiometry.band, the mean of the cell spectra over S E must
@@ -11,7 +11,7 @@ import pytest
 
 from simcore.radiometry.band import band_curve, band_maps_for_curve
 from simcore.radiometry.spectral import NM_M, integral_of_product, solar_spectrum
-from simcore.render import spectral_check as sc
+from simcore.pipeline import spectral_check as sc
 
 DIODES = ("BPW34FS", "SFH2430", "BPW34")
 NORMALS = ("nadir", "45 anti-sun", "horizon side")
@@ -76,7 +76,7 @@ def test_spectral_variant_leaves_the_renderer_alone():
     # a second Mitsuba variant in one process: a mono render before and after a spectral estimate is identical
     from simcore._llvm import import_mitsuba
     from simcore.constants import BPW34_AREA_M2, R_EARTH_MEAN_M
-    from simcore.render.irradiance import DiodeSurfaces, Renderer
+    from simcore.render import DiodeSurfaces, Renderer
     from simcore.shapes.aperture import diode_frame
     a = float(np.sqrt(BPW34_AREA_M2))
     rend = Renderer(DiodeSurfaces(np.zeros((1, 3)), diode_frame(np.array([0.0, 0.0, -1.0]))[None], [a, a]),

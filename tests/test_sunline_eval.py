@@ -11,7 +11,9 @@ import pytest
 
 from estimators.metrics import angle_error_deg
 from simcore.cli import main
-from simcore.pipeline.run import RunOptions, execute, open_run
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import execute
+from simcore.pipeline.runfile import open_run
 from simcore.sensor.errors import Fault, SensorErrors
 from simcore.pipeline.evaluate_sunline import filter_run, true_rate_body, true_signals
 

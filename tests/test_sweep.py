@@ -4,7 +4,7 @@ import os
 import numpy as np
 import xarray as xr
 
-from simcore.pipeline.run import RunOptions
+from simcore.pipeline.options import RunOptions
 from simcore.pipeline.sweep import sweep, sweep_points
 
 

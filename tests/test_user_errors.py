@@ -51,7 +51,7 @@ def _case(tmp_path, bad, good, words):
 
 
 def _cuda_works():
-    from simcore.render.irradiance import _cuda_works
+    from simcore.render.launch import _cuda_works
     return _cuda_works()        # imports Dr.Jit through simcore._llvm, its libLLVM set first
 
 

@@ -26,8 +26,8 @@ import xarray as xr
 
 from scenes.config import SatelliteConfig
 from simcore.cli import main
-from simcore.pipeline.run import check_run
-from simcore.render.irradiance import DiodeSurfaces, Renderer
+from simcore.pipeline.runfile import check_run
+from simcore.render import DiodeSurfaces, Renderer
 from simcore.shapes.window import Window, WindowedWell
 from simcore.studies.response import traced_response
 
@@ -373,7 +373,7 @@ def test_sun_seen_in_a_mirror_through_the_window(window, agrees):
     # direct Sun at the same angle. z-tests |z| < 3.3 (false alarm 1e-3 each, fixed seed); the negative case
     # compares with the oracle without the window.
     import trimesh
-    from simcore.render.irradiance import SUN_ANGULAR_RADIUS_RAD
+    from simcore.render import SUN_ANGULAR_RADIUS_RAD
     side, e_sun = 0.01, 1000.0
     win = Window(1.5, 1e-3, 0.5e-3, (60e-3, 60e-3))
     ds = DiodeSurfaces(np.zeros((1, 3)), np.eye(3)[None], [[side, side]], windows=[win])

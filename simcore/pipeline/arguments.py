@@ -165,7 +165,7 @@ def _spectral_check(args):
     for diode in args.diode:
         band_curve(diode)
     if args.samples > 0:
-        from simcore.render.spectral_check import NORMALS_LOCAL
+        from simcore.pipeline.spectral_check import NORMALS_LOCAL
         preflight.check_wave_resources("--samples", args.samples, args.epochs, len(NORMALS_LOCAL))
 
 

@@ -114,7 +114,8 @@ def run_mekf(ds, path=None, *, gyro=DEFAULT_GYRO, magnetometer=DEFAULT_MAGNETOME
     from simcore.sensor.magnetometer import MagnetometerModel, field_gcrs_t, magnetometer_spec
     from simcore.environment.maps import named_map
     from simcore.radiometry.onboard import predict_albedo_effective
-    from simcore.pipeline.run import PreparedRun, options_of
+    from simcore.pipeline.run import PreparedRun
+    from simcore.pipeline.runfile import options_of
     from simcore.sensor.chain import DIODES, SensorChain
 
     gspec, mspec = gyro_spec(gyro), magnetometer_spec(magnetometer)
@@ -330,7 +331,8 @@ def albedo_model_error_deg(ds, path=None, *, onboard_map=None, diode="BPW34FS"):
     from estimators.advanced import model_albedo_estimate
     from simcore.environment.maps import named_map
     from simcore.pipeline.evaluate import measure
-    from simcore.pipeline.run import PreparedRun, options_of
+    from simcore.pipeline.run import PreparedRun
+    from simcore.pipeline.runfile import options_of
     from simcore.radiometry.onboard import predict_albedo_effective
     from simcore.sensor.chain import DIODES
 

@@ -37,7 +37,7 @@ import numpy as np
 from simcore.environment import ccsds
 from simcore.environment.epochs import Epochs
 from simcore.errors import InvalidInputError
-from simcore.pipeline.run import open_run
+from simcore.pipeline.runfile import open_run
 from simcore.pipeline.store import atomic_write, check_writable
 
 FORMATS = ("csv", "aem", "oem", "basilisk")

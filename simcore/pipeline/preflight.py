@@ -1,6 +1,6 @@
 """Checks of a run's options that must all pass before anything is written.
 
-:func:`simcore.pipeline.run.prepare` turns :class:`simcore.pipeline.run.RunOptions` into a ready
+:func:`simcore.pipeline.run.prepare` turns :class:`simcore.pipeline.options.RunOptions` into a ready
 :class:`simcore.pipeline.run.PreparedRun` or raises a :class:`~simcore.errors.UserError`
 naming the option and what to do. It reads the configuration, TLE,
 attitude file and reflectivity map, computes the geometry and asks Dr.Jit
@@ -136,7 +136,7 @@ def check_model_inputs(config, tle, map_name, clouds=None):
 
 def check_variant(variant):
     """Return the Mitsuba variant a run will use; raise InvalidInputError if ``variant`` cannot run here."""
-    from simcore.render import irradiance as render
+    from simcore.render import launch as render
     if variant is not None and variant not in render._VARIANTS:
         raise InvalidInputError(f"--variant {variant} is unknown; use one of {', '.join(render._VARIANTS)}")
     try:
@@ -233,7 +233,7 @@ MAX_LANES = 2 ** 32 - 1
 # diodes x 4e6 paths (4.8e7 lanes) peaked at 2.36 GB against 0.38 GB at 256 paths (/usr/bin/time -v): 41 bytes a
 # lane; 64 with room for Dr.Jit's pools.
 REFLECTED_BYTES_PER_LANE = 64
-# epochs gathered into one reflected wavefront at most (simcore.render.irradiance.Renderer.render's batch_epochs)
+# epochs gathered into one reflected wavefront at most (simcore.render.Renderer.render's batch_epochs)
 REFLECTED_BATCH_EPOCHS = 64
 
 

@@ -1,57 +1,43 @@
 """The main job: render diode irradiance along an orbit, check it, store it.
 
-:func:`execute` renders the study in chunks of epochs, stores every finished
-chunk crash-safely (:mod:`simcore.pipeline.store`), computes the analytic model
-beside each chunk and, once all are done, writes one self-describing xarray
-Dataset (netCDF) with the check's verdict. Killed and started again with the
-same options it continues from its last finished chunk and ends with exactly
-the numbers of an uninterrupted run (the renderer's random numbers are keyed
-by the global epoch index, not by the chunk).
+:func:`prepare` checks every input and returns a :class:`PreparedRun` (configuration, geometry, maps, renderer);
+:func:`execute` renders it in chunks of epochs, stores every finished chunk crash-safely
+(:mod:`simcore.pipeline.store`), computes the check's reference beside each chunk
+(:mod:`simcore.pipeline.reference`) and, once all are done, writes one self-describing run file
+(:mod:`simcore.pipeline.runfile`) with the check's verdict. Killed and started again with the same options
+(:mod:`simcore.pipeline.options`) it continues from its last finished chunk and ends with exactly the numbers of
+an uninterrupted run (the renderer's random numbers are keyed by the global epoch index, not by the chunk).
 """
 import concurrent.futures
+import copy
 import dataclasses
 import functools
-import datetime as _dt
-import hashlib
 import json
 import os
-from pathlib import Path
-import shlex
 import sys
-from dataclasses import dataclass
 
 import numpy as np
-import xarray as xr
 
-from scenes.config import SatelliteConfig, body_side_normal
+from scenes.config import SatelliteConfig
 from scenes.satellite import Satellite
-from simcore.radiometry.analytic import BodyBox, DirectionVisibility, diode_irradiance
-from simcore.radiometry.analytic_direct import disc_directions
 from simcore.radiometry.glint import SunGlint, check_refine as glint_check_refine
-from simcore.shapes.aperture import CircularWell
-from simcore.shapes.occlusion import box_hit
-from simcore.shapes.window import WindowedWell
-from simcore.render.irradiance import Renderer, occluder_scene, rays_blocked, widen_cells
-
-from simcore import _llvm
-from simcore._version import __version__
-from simcore.environment import attitude as _attitude
-from simcore.pipeline import check as _check
+from simcore.render import Renderer
 from simcore.environment.earth import Earth
-from simcore.constants import AU_M, E_SUN_W_M2, R_EARTH_MEAN_M, R_SUN_M, TSI_W_M2
-from simcore.errors import InputNotFoundError, InvalidInputError, OutputError
+
+from simcore.environment import attitude as _attitude
+from simcore.constants import AU_M, R_EARTH_MEAN_M, R_SUN_M
+from simcore.errors import InvalidInputError, OutputError
 from simcore.radiometry import band
-from simcore.environment.clouds import DEFAULT_SCALE_KM as CLOUD_SCALE_KM
-from simcore.pipeline.preflight import (REFLECTED_SAMPLES, attitude_times_note, check_map, check_numbers,
-                                       check_run_resources, check_variant, map_for_diodes, reflected_ignored_note,
-                                       tle_age_note)
-from simcore.pipeline.runfile import (add_checksums, git_commit as _git_commit, size_bound, verify_checksums,
-                                      software_versions as _versions, writer as _writer)
+from simcore.pipeline.check import PLAIN_CHECK_SAMPLES, plain_check_epochs
+from simcore.pipeline.preflight import (attitude_times_note, check_map, check_numbers, check_run_resources,
+                                       check_variant, map_for_diodes, reflected_ignored_note, tle_age_note)
+from simcore.pipeline.reference import CheckReference
+from simcore.pipeline.runfile import (CHUNK_ARRAYS, add_checksums, build_dataset, chunk_arrays_of, open_run,
+                                      options_digest, options_of, size_bound, software_versions, writer)
 from simcore.pipeline.store import (ChunkStore, atomic_write, check_room, check_writable, chunk_ranges, is_disk_full,
                                     missing_ranges, spec_digest)
-from simcore.environment.geometry import compute_geometry, orbital_period_s
+from simcore.environment.geometry import compute_geometry
 from simcore.pipeline import schedule as _schedule
-from simcore.pipeline.schedule import study_geometry  # noqa: F401 (its old home: callers import it from here)
 
 # The analytic reference for the albedo check uses cells refined 2 x 2; its estimated discretisation error
 # (check.discretisation_bound, a third of |native - refined|) joins each diode-epoch's variance. On a sunlit
@@ -72,84 +58,13 @@ CHECK_REFINE = 2
 CHECK_REFINE_CLOUDS = 4
 
 
-@dataclass
-class RunOptions:
-    """Everything that decides a run's numbers (and where it goes)."""
-
-    config: str = "tilt20_fov70"
-    tle: str = None
-    satellite: str = None
-    orbit_file: str = None            # CCSDS OEM (KVN or XML) instead of a TLE (simcore.environment.ephemeris)
-    start: str = None                  # None: the attitude history's first sample, the ephemeris's first epoch,
-                                       # else DEFAULT_START (schedule.py)
-    duration_s: float = None          # None: the rest of the attitude history (or ephemeris), else one orbital period
-    step_s: float = 1.0
-    spin_rate_deg_s: float = _attitude.DEFAULT_TUMBLE_RATE_DEG_S
-    spin_axis: tuple = (1.0, 1.0, 1.0)
-    attitude_file: str = None          # attitude history file (environment.telemetry.read_attitude_history)
-    attitude_frame: str = None         # its frame / direction where the file does not declare them
-    attitude_direction: str = None
-    attitude_history: object = None    # in-process AttitudeHistory (instead of attitude_file)
-    times_file: str = None             # explicit epochs: one ISO-8601 UTC time per line (schedule.read_times)
-    epochs: object = None              # explicit epochs in-process (an Epochs)
-    dynamics: str = None               # inertia 'IXX,IYY,IZZ[,IXY,IXZ,IYZ]' kg m^2: torque-free Euler dynamics
-    rel_se_direct: float = 0.002       # target relative standard errors (None: fixed sample counts)
-    rel_se_albedo: float = 0.01
-    direct_samples: int = 1024
-    albedo_samples: int = 256
-    reflected_samples: int = REFLECTED_SAMPLES    # paths per diode-epoch for the reflected component (4 m^2)
-    dead: tuple = ()
-    extra_flat_diodes: bool = False    # the two optional flat diodes on top and bottom (diodes 14, 15)
-    variant: str = None
-    seed: int = 0
-    reflectivity: str = "toms2005"
-    clouds: int = None                 # cloud-weather seed (simcore.environment.clouds); None: the map as it is
-    cloud_scale_km: float = None       # the clouds' correlation length (None: clouds.DEFAULT_SCALE_KM)
-    eop: tuple = None                  # Earth orientation (UT1 - UTC s, x_p arcsec, y_p arcsec), IERS Bulletin A; None: 0
-    glint: float = None                # sea sun glint: wind speed m/s at 12.5 m (simcore.radiometry.glint); None: none
-    sun_disc: bool = True              # finite solar disc: penumbra
-    e_sun_w_m2: float = TSI_W_M2        # solar irradiance at 1 AU (the thesis: E_SUN_W_M2 = 1366.1)
-    distance_scaling: bool = True      # x (1 AU / r_sun)^2 (the thesis: a constant, False)
-    chunk_epochs: int = 512
-    output: str = None                 # None: runs/default.nc, or the next free runs/default-N.nc (execute)
-    fail_on_check: bool = True        # exit status 1 when the analytic check fails
-    overwrite: bool = False            # replace an existing output made with other settings
-    allow_bright_map: bool = False     # accept reflectivity above preflight.MAP_REFLECTIVITY_MAX
-
-    def spec(self):
-        """Return the JSON-able settings that determine the numbers (not where they go)."""
-        d = dataclasses.asdict(self)
-        for k in ("output", "fail_on_check", "chunk_epochs", "overwrite", "allow_bright_map"):
-            d.pop(k)
-        d["dead"] = sorted(int(i) for i in d["dead"])
-        if d["clouds"] is None:         # runs without clouds keep the settings digest they always had
-            d.pop("clouds")
-            d.pop("cloud_scale_km")
-        elif d["cloud_scale_km"] is None:   # the default length named or not: one run, one digest
-            d["cloud_scale_km"] = CLOUD_SCALE_KM
-        if d["glint"] is None:          # runs without glint keep the settings digest they always had
-            d.pop("glint")
-        if d["eop"] is None:            # runs without Earth-orientation data keep the digest they always had
-            d.pop("eop")
-        else:
-            d["eop"] = [float(x) for x in d["eop"]]
-        if d["reflected_samples"] == REFLECTED_SAMPLES:     # runs at the default keep the digest they always had
-            d.pop("reflected_samples")
-        d["spin_axis"] = [float(x) for x in d["spin_axis"]]
-        _schedule.spec_fields(self, d)
-        for k in ("config", "tle", "attitude_file", "times_file", "orbit_file"):
-            v = d.get(k)
-            if v and os.path.isfile(v):
-                with open(v, "rb") as f:
-                    d[k + "_sha256"] = hashlib.sha256(f.read()).hexdigest()
-        d["sunsim_version"] = __version__
-        return d
-
-
 class PreparedRun:
-    """A prepared run: configuration, geometry, scene and maps, ready to render chunks."""
+    """A prepared run: configuration, geometry, scene and maps, ready to render chunks.
 
-    def __init__(self, opts):
+    ``variant``: the Mitsuba variant :func:`prepare` checked (the run file records the renderer's own once it is
+    built); ``renderer``: a renderer to render with instead of the one built from the run on first use."""
+
+    def __init__(self, opts, *, variant=None, renderer=None):
         self.opts = opts
         self.config = SatelliteConfig.load(opts.config, dead=list(opts.dead),
                                            extra_flat_diodes=True if opts.extra_flat_diodes else None)
@@ -170,7 +85,8 @@ class PreparedRun:
         self.check_refine = base if self.glint is None else glint_check_refine(        # finer for a calm sea's spot
             self.glint.wind_m_s, np.linalg.norm(r_m, axis=1).min() - R_EARTH_MEAN_M, self.map.dlon_deg, base)
         self.map_refined = self.map.refined(self.check_refine)
-        self._renderer = None
+        self._variant = variant
+        self._renderer = renderer
 
     def _sea_glint(self):
         """Return the run's :class:`SunGlint` on the map's cells (its sea fraction in the map's row order), or None.
@@ -208,7 +124,7 @@ class PreparedRun:
         return float(np.arcsin(R_SUN_M / np.nanmean(dist)))
 
     @functools.cached_property
-    def _parts(self):
+    def parts(self):
         """Return ``scenes.meshes.build_parts`` of the configuration (the renderer's mesh and the mounts rule)."""
         return self.satellite.parts
 
@@ -237,227 +153,35 @@ class PreparedRun:
         g = self.geometry
         return g.sun_distance_scale[sl] if self.opts.distance_scaling else np.ones(sl.stop - sl.start)
 
-    @functools.cached_property
-    def _parts_scene(self):
-        """Return the Mitsuba occluder scene of the configuration's extra parts ([[part]]) alone, or None."""
-        if not self.config.parts:
-            return None
-        import trimesh
-        self.renderer                                   # sets the Mitsuba variant
-        mesh = trimesh.util.concatenate([trimesh.Trimesh(p.vertices_m, p.faces, process=False)
-                                         for p in self.config.parts])
-        return occluder_scene(mesh, _llvm.import_mitsuba())
+    @property
+    def variant(self):
+        """Return the Mitsuba variant the run renders with: its renderer's once built, else the one :func:`prepare`
+        checked (None for a run not prepared)."""
+        return self._renderer.variant if self._renderer is not None else self._variant
 
-    def _sun_disc_probes(self, sl):
-        """Return (dirs (17, n, 3), s (n, 3), ok (n,), a): for the epochs of ``sl``, the unit body directions toward
-        the Sun's centre and 16 points just outside its rim (at ``a``, its angular radius x 1.001, rad), the Sun's
-        direction and which epochs are finite (the others get any direction, to be masked): the probes of the
-        shadow rules below."""
-        s = self.geometry.sun_dir_body[sl]
-        ok = np.all(np.isfinite(s), axis=1)
-        s = np.where(ok[:, None], s, [[0.0, 0.0, 1.0]])
-        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
-        ang = 2 * np.pi * np.arange(16) / 16
-        offsets = np.vstack([[0.0, 0.0], a * np.column_stack([np.cos(ang), np.sin(ang)])])
-        return disc_directions(s, offsets), s, ok, a
-
-    def parts_shadow(self, sl):
-        """Return (n, K) bool: the diode-epochs of ``sl`` whose direct Sun a part of the configuration other than
-        the body box and the mounts ([[part]]: panels, antennas, user meshes) may block, which the analytic
-        model does not know: a ray from any of 3 x 3 points over the diode toward the Sun's centre or 16 points
-        on its rim meets such a part. The check leaves their direct Sun out (counted, with the reason)."""
-        cfg = self.config
-        n, K = sl.stop - sl.start, cfg.n_diodes
-        if self._parts_scene is None:
-            return np.zeros((n, K), bool)
-        dirs, s, ok, a = self._sun_disc_probes(sl)
-        dirs = np.swapaxes(dirs, 0, 1)                                                  # (n, 17, 3)
-        f = np.linspace(-0.5, 0.5, 3)
-        F = np.asarray(cfg.frames)
-        sizes = np.array([[d.aperture.diode_x_m, d.aperture.diode_y_m] for d in cfg.diodes])
-        U, V = sizes[:, :1] * F[:, 0], sizes[:, 1:] * F[:, 1]                           # (K, 3) each
-        pts = (np.asarray(cfg.positions_m)[:, None, None] + f[None, :, None, None] * U[:, None, None]
-               + f[None, None, :, None] * V[:, None, None]).reshape(K, 9, 3)
-        # only pairs with part of the Sun in front of the diode can be lit, hence shaded
-        e, k = np.nonzero((np.einsum("nj,kj->nk", s, F[:, 2]) > -a) & ok[:, None])
-        out = np.zeros((n, K), bool)
-        if e.size:
-            o = np.broadcast_to(pts[k][:, :, None], (e.size, 9, 17, 3))
-            d = np.broadcast_to(dirs[e][:, None], (e.size, 9, 17, 3))
-            hit = rays_blocked(self._parts_scene, o.reshape(-1, 3), d.reshape(-1, 3), _llvm.import_mitsuba())
-            out[e, k] = hit.reshape(e.size, 9 * 17).any(axis=1)
-        return out
+    def with_renderer(self, renderer):
+        """Return a copy of this run that renders with ``renderer`` (None: one built afresh from the copy's map
+        and configuration on first use); the check's reference is built afresh with it."""
+        new = copy.copy(self)
+        new.__dict__.pop("reference", None)
+        new._renderer = renderer
+        return new
 
     @functools.cached_property
-    def mount_shaded_directions(self):
-        """Return (K, 90, 180) bool, or None where there is none: per diode, the cells of its direction grid
-        (``Renderer.direction_grid``) in which another diode's mount (ramp, floor plate, well, plug) meets some of
-        the probe rays of ``Renderer.blocked_share`` from the part of the diode its own well lights: a shadow the
-        analytic direct model (the body box and the diode's own well) does not know. Widened by one cell all
-        round, as :attr:`shaded_directions`. Only cells where the whole mesh blocks some probe are probed, each
-        diode's against the others' mounts (its own well's walls, which its lit part's probes may graze at the
-        horizon in float32, are the analytic model's)."""
-        import trimesh
-        if self.config.n_diodes < 2:
-            return None
-        where = np.nan_to_num(self.renderer.blocked_share(), nan=0.0) > 0    # (the renderer sets Mitsuba's variant)
-        mi = _llvm.import_mitsuba()
-        mounts = {name: m for name, m in self._parts.items() if name != "body" and not name.startswith("part_")}
-
-        def hit(scene, where):
-            return np.nan_to_num(self.renderer.probe_share(scene, where), nan=0.0) > 0
-        # every mount first (one scene), then the diodes some probe met again without their own mount
-        cell = hit(occluder_scene(trimesh.util.concatenate(list(mounts.values())), mi), where)
-        for k in np.flatnonzero(cell.any(axis=(1, 2))):
-            others = [m for name, m in mounts.items() if name.rsplit("_", 1)[1] != str(k)]
-            only = np.zeros_like(cell)
-            only[k] = cell[k]
-            cell[k] = hit(occluder_scene(trimesh.util.concatenate(others), mi), only)[k]
-        return widen_cells(cell) if cell.any() else None
-
-    def mounts_shadow(self, sl):
-        """Return (n, K) bool: the diode-epochs of ``sl`` whose direct Sun another diode's mount may block, which the
-        analytic model does not know: the Sun's centre or one of 16 points on its rim lies in a cell of
-        :attr:`mount_shaded_directions`. The check leaves their direct Sun out (counted, with the reason)."""
-        cfg = self.config
-        n, K = sl.stop - sl.start, cfg.n_diodes
-        cells = self.mount_shaded_directions
-        if cells is None:
-            return np.zeros((n, K), bool)
-        dirs, _, ok, _ = self._sun_disc_probes(sl)
-        out = np.zeros((n, K), bool)
-        for k, frame in enumerate(np.asarray(cfg.frames)):
-            if not cells[k].any():
-                continue
-            local = dirs @ frame.T                                                      # (17, n, 3): u, v, n
-            i, j = Renderer.direction_cell(local)
-            out[:, k] = ((local[..., 2] > 0) & cells[k][i, j]).any(axis=0) & ok
-        return out
-
-    def round_well_shadow(self, sl):
-        """Return (n, K) bool: the diode-epochs of ``sl`` of round wells (``CircularWell``) whose direct Sun the
-        body box may shade: part of the solar disc at or below the plane of the diode's panel and part of it in
-        front of the diode. The analytic model clips the box's shadow against a rectangular lit part only
-        (simcore.shapes.occlusion), so the check leaves these out (counted, with the reason). Above the
-        panel's plane no ray from the diode, which sits above the panel, can meet the box: the model is exact; a
-        diode flat on its panel sees nothing below that plane."""
-        g, cfg = self.geometry, self.config
-        out = np.zeros((sl.stop - sl.start, cfg.n_diodes), bool)
-        a = max(self.sun_angular_radius_rad, 1e-6) * 1.001
-        s = g.sun_dir_body[sl]
-        for k, d in enumerate(cfg.diodes):
-            if not isinstance(d.aperture, CircularWell) or cfg.body.none:     # no body: the model is exact
-                continue
-            p = body_side_normal(d, cfg.body)       # its panel's normal (a diode on a part: the box face it lies beyond)
-            # (a diode flat on its panel sees nothing below the panel's plane: never)
-            if d.normal_body @ p < 1.0 - 1e-9:
-                with np.errstate(invalid="ignore"):
-                    out[:, k] = (s @ p < np.sin(a)) & (s @ d.normal_body > -np.sin(a))
-        return out
+    def reference(self):
+        """Return the check's reference of this run (:class:`simcore.pipeline.reference.CheckReference`)."""
+        return CheckReference(self)
 
     @functools.cached_property
-    def visibility(self):
-        """Return the ``DirectionVisibility`` of the check's albedo reference: in the cells of
-        :attr:`shaded_directions`, the visible share of each diode traced against the mesh on a 0.25 x 0.5
-        deg grid (and a 0.5 x 1 deg one for the quadrature's error), ``Renderer.visible_share``."""
-        fine, half = self.renderer.visible_share(self.shaded_directions)
-        return DirectionVisibility(self.shaded_directions, fine, half)
-
-    @functools.cached_property
-    def shaded_directions(self):
-        """Return (K, 90, 180) bool: per diode, the directions of its 1 x 2 deg grid
-        (``Renderer.direction_grid``) where the analytic model's picture of what shades the diode is not
-        the mesh's: the traced probes of ``Renderer.blocked_share`` are not all what the body box at the
-        diode's centre says (all blocked or all free), i.e. a shadow edge of the body crosses the diode or
-        another part (rails, other diodes' mounts) shades it. Widened by one cell all round, so that an
-        edge that passes between the cells' centres still marks the cells it crosses."""
-        share = self.renderer.blocked_share()
-        th, ph = self.renderer.direction_grid()
-        TH, PH = np.meshgrid(th, ph, indexing="ij")
-        local = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)
-        box = self.satellite.body_box
-        out = np.zeros(share.shape, bool)
-        for k, frame in enumerate(np.asarray(self.config.frames)):
-            model = np.zeros(TH.shape) if box is None else box_hit(box.positions_m[k], local @ frame, box.half_m) * 1.0
-            cell = np.isfinite(share[k]) & (share[k] != model)
-            out[k] = widen_cells(cell)
-        return out
-
-    def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True, box_albedo=False):
-        """Return the analytic irradiance of epochs ``sl`` on ``reflectivity_map``; ``mesh``: the albedo with
-        the traced :attr:`visibility` where shadows cross the diodes (the check's reference). The direct Sun
-        alone (``albedo=False``) is numpy and the body box's shadow kernel (traced, never frozen): it may run in
-        another thread while the renderer records and replays its frozen kernels (Dr.Jit records per thread)."""
-        g = self.geometry
-        out = diode_irradiance(g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl],
-                               self.config.frames, self.config.apertures, earth=self.earth.on_grid(reflectivity_map),
-                               e_sun_w_m2=self.opts.e_sun_w_m2, distance_scaling=self.opts.distance_scaling,
-                               eclipse="conical" if self.opts.sun_disc else "cylindrical",
-                               body=self.satellite.body_box,
-                               sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
-                               albedo=albedo, backend="auto" if albedo else "numpy",
-                               visibility=self.visibility if mesh else None, box_albedo=box_albedo)
-        if any(w is not None for w in self.config.windows):
-            self._windowed_analytic(out, sl, reflectivity_map, direct, mesh, albedo, box_albedo)
-        return out
-
-    def _windowed_analytic(self, res, sl, reflectivity_map, direct, mesh, albedo=True, box_albedo=False):
-        """Replace in ``res`` (the analytic result of epochs ``sl``) the columns of the diodes under a window by
-        the model with the window: each integrand times the slab's closed-form transmittance with its
-        footprint (:class:`simcore.shapes.window.WindowedWell`). The direct Sun without the body box (where the
-        box may shade such a diode, :meth:`window_shadow` leaves it out of the check), numpy only (it may run
-        beside the renderer in the worker thread); the albedo with the box at the diode's centre, as for the
-        other diodes, in the Dr.Jit kernel (``WindowedWell.kernel``)."""
-        cfg, g = self.config, self.geometry
-        idx = [k for k, w in enumerate(cfg.windows) if w is not None]
-        resps = [WindowedWell(cfg.diodes[k].aperture, cfg.diodes[k].window) for k in idx]
-        frames = np.asarray(cfg.frames)[idx]
-        box = self.satellite.body_box
-        common = dict(earth=self.earth.on_grid(reflectivity_map), e_sun_w_m2=self.opts.e_sun_w_m2,
-                      distance_scaling=self.opts.distance_scaling,
-                      eclipse="conical" if self.opts.sun_disc else "cylindrical",
-                      sun_angular_radius_rad=self.sun_angular_radius_rad)
-        args = (g.r_sat_ecef_m[sl], g.r_sun_ecef_m[sl], g.R_ecef_from_body[sl], frames, resps)
-        if direct:
-            res.direct_w_m2[:, idx] = diode_irradiance(*args, albedo=False, backend="numpy", **common).direct_w_m2
-        if not albedo:
-            return
-        vis = None
-        if mesh:
-            v = self.visibility
-            vis = DirectionVisibility(v.mask[idx], v.fine[idx], v.half[idx])
-        alb = diode_irradiance(*args, direct=False, visibility=vis, **common, box_albedo=box_albedo,
-                               body=box and BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]))
-        res.albedo_w_m2[:, idx] = alb.albedo_w_m2
-        for name in ("albedo_mesh_w_m2", "albedo_visibility_error_w_m2", "albedo_box_w_m2"):
-            if getattr(res, name) is not None:
-                getattr(res, name)[:, idx] = getattr(alb, name)
-
-    def direct_unchecked(self, sl):
-        """Return ((n, K) bool, (n, K) bool): the diode-epochs of ``sl`` whose direct Sun the check leaves out
-        (a part, another diode's mount, a window under the body's shadow or a round well under it may shade it: no
-        exact reference), and those of them that are a window's."""
-        window = self.window_shadow(sl)
-        return self.parts_shadow(sl) | self.mounts_shadow(sl) | window | self.round_well_shadow(sl), window
-
-    def window_shadow(self, sl):
-        """Return (n, K) bool: the diode-epochs of ``sl`` with a window over the diode whose direct Sun the body box
-        may shade: part of the solar disc (its centre or 16 rim points) lies in front of the diode and below its
-        panel's plane. There the light leaves the window shifted along its path, which moves the box's shadow:
-        the analytic model has no exact reference, and the check leaves that direct value out (counted)."""
-        cfg = self.config
-        n, K = sl.stop - sl.start, cfg.n_diodes
-        out = np.zeros((n, K), bool)
-        idx = [k for k, w in enumerate(cfg.windows) if w is not None]
-        if not idx or cfg.body.none:            # no body ([body] none): nothing shades a window
-            return out
-        dirs, _, ok, _ = self._sun_disc_probes(sl)
-        box = self.satellite.body_box
-        for k in idx:
-            front = dirs @ cfg.diodes[k].normal_body > 0
-            below = dirs @ box.panel_normals[k] < 0
-            out[:, k] = (front & below).any(axis=0) & ok
-        return out
+    def notes(self):
+        """Return the run's warnings (list of str): the TLE's age, reflections not traced, relative attitude
+        times, and the notes of the run's plan and configuration."""
+        opts = self.opts
+        notes = [tle_age_note(self.orbit, self.epochs), reflected_ignored_note(opts.reflected_samples, self.config)]
+        if opts.attitude_file and _schedule.relative_times_csv(opts.attitude_file):
+            notes.append(attitude_times_note(_attitude.Attitude.from_file(opts.attitude_file).t_s,
+                                             opts.attitude_file))
+        return [n for n in notes if n] + list(self.plan.notes) + list(self.config.notes)
 
     @functools.cached_property
     def worker(self):
@@ -473,7 +197,7 @@ class PreparedRun:
         second, hint-free direct estimate on its share of the epochs (NaN elsewhere)."""
         o, g, sl = self.opts, self.geometry, slice(start, stop)
         valid = g.valid[sl]
-        direct_ref = self.worker.submit(self.analytic, sl, self.map, albedo=False)
+        direct_ref = self.worker.submit(self.reference.analytic, sl, self.map, albedo=False)
         args = (g.sun_dir_body[sl], g.earth_center_body_m[sl], g.R_ecef_from_body[sl], self.sun_scale(sl))
         res = self.renderer.render(
             *args, sun_dir_earth_body=self.earth_sun_dir_body(sl), earth_sun_scale=self.earth_sun_scale(sl),
@@ -487,11 +211,12 @@ class PreparedRun:
                                        albedo=False, hint=False, reflected=False,
                                        direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
             plain[pick] = np.stack([sub.direct_w_m2, sub.direct_se_w_m2, sub.direct_dof], axis=-1)
-        native = self.analytic(sl, self.map, direct=False, mesh=True, box_albedo=True)  # box-only and traced shares
+        # box-only and traced shares
+        native = self.reference.analytic(sl, self.map, direct=False, mesh=True, box_albedo=True)
         native_albedo, native_mesh = native.albedo_box_w_m2, native.albedo_w_m2
-        fine = self.analytic(sl, self.map_refined, direct=False, mesh=True)
+        fine = self.reference.analytic(sl, self.map_refined, direct=False, mesh=True)
         native_direct = direct_ref.result().direct_w_m2
-        unchecked, window_shadow = self.direct_unchecked(sl)
+        unchecked, window_shadow = self.reference.direct_unchecked(sl)
         out = {
             "rendered": np.stack([res.direct_w_m2, res.albedo_w_m2, res.reflected_w_m2], axis=-1),
             "rendered_se": np.stack([res.direct_se_w_m2, res.albedo_se_w_m2, res.reflected_se_w_m2], axis=-1),
@@ -511,182 +236,6 @@ class PreparedRun:
         return out
 
 
-# The arrays of a finished chunk (PreparedRun.render_chunk); a partial run whose chunks lack one was written
-# by an older sunsim and cannot be resumed by this one
-CHUNK_ARRAYS = ("rendered", "rendered_se", "rendered_dof", "samples", "direct_plain", "analytic",
-                "analytic_albedo_refined", "analytic_albedo_native_mesh", "albedo_mesh", "albedo_visibility_error",
-                "direct_unchecked", "direct_unchecked_window", "valid")
-
-PLAIN_CHECK_SHARE = 0.125     # share of the epochs whose direct Sun is rendered again without the aperture hint
-# ...with at least this many samples: with 64, a well's edge crosses a handful of strata and the hint-free
-# estimate's standard error is unreliable (a 4-epoch run read 22 sigma off with seed 7)
-PLAIN_CHECK_SAMPLES = 1024
-
-
-def plain_check_epochs(seed, n):
-    """Return (n,) bool: the epochs of a run whose direct Sun the check renders a second time without the
-    analytic aperture hint (a random share PLAIN_CHECK_SHARE, fixed by the seed, so a resumed run picks the
-    same ones)."""
-    return np.random.default_rng([int(seed), 0x9E3779B9]).random(n) < PLAIN_CHECK_SHARE
-
-
-def _tle_age_days(study):
-    """Return the days from the TLE epoch to the run's first epoch (negative: before the epoch; NaN without a TLE)."""
-    if not hasattr(study.orbit, "satrec"):
-        return float("nan")
-    sat = study.orbit.satrec
-    return (study.epochs.jd1[0] - sat.jdsatepoch) + (study.epochs.jd2[0] - sat.jdsatepochF)
-
-
-def _with_reflected(data):
-    """Return the chunk arrays with a third, ``reflected`` component (zeros, exact) where they have only direct
-    and albedo (run files written before the renderer traced reflections: all surfaces black)."""
-    if data["rendered"].shape[-1] == 3:
-        return data
-    out = dict(data)
-    for key, fill in (("rendered", 0.0), ("rendered_se", 0.0), ("rendered_dof", np.inf), ("samples", 0)):
-        a = np.asarray(data[key])
-        out[key] = np.concatenate([a, np.full(a.shape[:-1] + (1,), fill, dtype=a.dtype)], axis=-1)
-    return out
-
-
-def build_dataset(study, data, variant):
-    """Return the run's xarray Dataset from the concatenated chunk arrays."""
-    o, g, cfg = study.opts, study.geometry, study.config
-    n, k = data["rendered"].shape[:2]
-    data = _with_reflected(data)
-    # Richardson: the same integrand (the traced visible shares where shadows cross the diodes) on the native
-    # and the refined cells; the model's box-only albedo would fold the shares' effect into the estimate
-    bound = _check.discretisation_bound(data["analytic_albedo_native_mesh"], data["analytic_albedo_refined"],
-                                        study.check_refine)
-    # the analytic model's surfaces are black: it reflects nothing; the check has no reference for it (NaN)
-    analytic = np.concatenate([data["analytic"][..., :2], np.zeros((n, k, 1))], axis=-1)
-    analytic_ref = np.stack([analytic[..., 0], data["analytic_albedo_refined"], np.full((n, k), np.nan)], axis=-1)
-    names = [d.name for d in cfg.diodes]
-    W = "W m-2"
-    coords = {
-        "time": ("time", g.epochs.datetime64, {"long_name": "epoch, UTC", "standard_name": "time",
-                                               "time_zone": "UTC"}),
-        "t_s": ("time", g.t_s, {"units": "s", "long_name": "seconds since the first epoch"}),
-        "diode": ("diode", np.arange(k), {"units": "1", "long_name": "diode index"}),
-        "diode_name": ("diode", np.array(names, dtype=object), {"long_name": "diode name in the configuration"}),
-        "component": ("component", np.array(["direct", "albedo", "reflected"], dtype=object),
-                      {"long_name": "irradiance component: direct Sun, Earth albedo, or Sun and Earth light "
-                                    "reflected by the spacecraft (the total is their sum; reflected is not "
-                                    "checked against the analytic model)"}),
-        "xyz": ("xyz", np.array(["x", "y", "z"], dtype=object), {"long_name": "Cartesian axis"}),
-        "statistic": ("statistic", np.array(["value", "se", "dof"], dtype=object),
-                      {"long_name": "estimate, its standard error, their effective degrees of freedom"}),
-        "quat": ("quat", np.array(["w", "x", "y", "z"], dtype=object),
-                 {"long_name": "quaternion component, scalar first"}),
-    }
-    ds = xr.Dataset(
-        {
-            "irradiance": (("time", "diode", "component"), data["rendered"],
-                           {"units": W, "long_name": "rendered irradiance on the diode's sensitive area"}),
-            "irradiance_se": (("time", "diode", "component"), data["rendered_se"],
-                              {"units": W, "long_name": "Monte-Carlo standard error of irradiance"}),
-            "irradiance_dof": (("time", "diode", "component"), data["rendered_dof"],
-                               {"units": "1", "long_name": "effective degrees of freedom of irradiance_se "
-                                                          "(Satterthwaite; inf where the value is exact)"}),
-            "direct_plain": (("time", "diode", "statistic"), data["direct_plain"],
-                             {"units": W, "long_name": "the check's second direct-Sun estimate, rendered without the "
-                                                       "analytic aperture hint on a random share of the epochs "
-                                                       "(NaN elsewhere): value, standard error, degrees of freedom"}),
-            "samples": (("time", "diode", "component"), data["samples"], {"units": "1", "long_name": "rays traced"}),
-            "analytic": (("time", "diode", "component"), analytic,
-                         {"units": W, "long_name": "analytic model: aperture overlap response (direct), "
-                                                   "Bhanderi cell sum on the native map (albedo)"}),
-            "analytic_reference": (("time", "diode", "component"), analytic_ref,
-                                   {"units": W, "long_name": f"analytic reference of the check (albedo on the map "
-                                                             f"refined {study.check_refine}x{study.check_refine})"}),
-            "albedo_discretisation_bound": (("time", "diode"), bound,
-                                            {"units": W, "long_name": "estimated cell-discretisation error of "
-                                                                      "the refined analytic albedo"}),
-            "albedo_mesh": (("time", "diode"), data["albedo_mesh"],
-                            {"units": W, "long_name": "albedo of the check's reference arriving through directions "
-                                                     "where shadows of the body or other parts cross the diode "
-                                                     "(before their shadow; there the reference takes the visible "
-                                                     "share traced against the mesh)"}),
-            "albedo_visibility_error": (("time", "diode"), data["albedo_visibility_error"],
-                                        {"units": W, "long_name": "estimated error of the reference's traced "
-                                                                  "visible share (its grid made twice as coarse)"}),
-            "direct_unchecked": (("time", "diode"), np.asarray(data["direct_unchecked"], np.int8),
-                                 {"units": "1", "long_name": "1 where a part the analytic model does not know "
-                                                             "([[part]]: panels, antennas, user meshes; another "
-                                                             "diode's mount) may block the direct Sun: the check "
-                                                             "leaves that direct value out"}),
-            "direct_unchecked_window": (("time", "diode"), np.asarray(data["direct_unchecked_window"], np.int8),
-                                        {"units": "1", "long_name": "1 where a diode under a window may be shaded "
-                                                                    "by the body (its light leaves the window "
-                                                                    "shifted): also in direct_unchecked"}),
-            "sun_dir_body": (("time", "xyz"), g.sun_dir_body, {"units": "1", "long_name": "unit satellite->Sun vector",
-                                                                 "frame": "body"}),
-            "sun_scale": ("time", study.sun_scale(slice(0, n)),
-                          {"units": "1", "long_name": "factor on the solar constant (1, or (1 AU / r)^2 with distance scaling)"}),
-            "sun_dir_gcrs": (("time", "xyz"), g.sun_dir_gcrs, {"units": "1", "long_name": "unit satellite->Sun vector",
-                                                               "frame": "GCRS"}),
-            "r_sat_gcrs": (("time", "xyz"), g.r_sat_gcrs_m, {"units": "m", "long_name": "satellite position", "frame": "GCRS"}),
-            "r_sat_ecef": (("time", "xyz"), g.r_sat_ecef_m, {"units": "m", "long_name": "satellite position", "frame": "ITRS"}),
-            "illumination": ("time", g.illumination,
-                             {"units": "1", "long_name": "visible fraction of the solar disc (conical Earth shadow)"}),
-            "sunlit_cylindrical": ("time", g.sunlit_cylindrical.astype(np.int8),
-                                   {"units": "1", "long_name": "1 where sunlit under the thesis' cylindrical shadow "
-                                                               "(eqs. 4.6-4.10)"}),
-            "q_gcrs_from_body": (("time", "quat"), study.attitude.q_gcrs_from_body,
-                                 {"units": "1", "long_name": "attitude quaternion, scalar first, rotates body "
-                                                             "vectors into GCRS"}),
-            "valid": ("time", data["valid"].astype(np.int8),
-                      {"units": "1", "long_name": "1 where the orbit and the rendering are valid"}),
-            "normal_body": (("diode", "xyz"), cfg.normals, {"units": "1", "long_name": "diode normal",
-                                                           "frame": "body"}),
-            "fov_deg": ("diode", cfg.fov_deg, {"units": "deg", "long_name": "design field of view (eq. 4.15)"}),
-            "dead": ("diode", cfg.dead.astype(np.int8), {"units": "1", "long_name": "1 for a dead diode"}),
-        },
-        coords=coords,
-    )
-    ds = _schedule.annotate(ds, study, n)
-    tle = f"{study.orbit.line1}\n{study.orbit.line2}" if hasattr(study.orbit, "line1") else ""
-    cfg_text = Path(cfg.source).read_text() if cfg.source and os.path.isfile(cfg.source) else ""
-    ds.attrs.update({
-        "title": "sunsim diode irradiance run",
-        "conventions": "time leads; frames named in each variable; SI units",
-        "configuration": cfg.name,
-        "configuration_toml": cfg_text,
-        "satellite": study.orbit.name or "",
-        "norad_id": -1 if study.orbit.norad_id is None else int(study.orbit.norad_id),
-        "tle": tle,
-        "orbit_source": "TLE" if tle else f"CCSDS OEM {o.orbit_file} (sha256 {study.orbit.sha256})",
-        "reflectivity_map": study.map.name,
-        "seed": int(o.seed),
-        "reflected_samples": int(o.reflected_samples),
-        "variant": variant,
-        "options": json.dumps(o.spec(), sort_keys=True),
-        "software": json.dumps(_versions(), sort_keys=True),
-        "e_sun_w_m2": study.opts.e_sun_w_m2,
-        "period_s": float(orbital_period_s(study.orbit)),
-        "tle_age_days": float(_tle_age_days(study)),
-        "warnings": "\n".join(getattr(study, "notes", [])),
-        "time_scale": "UTC",
-        "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        "command_line": shlex.join([os.path.basename(sys.argv[0]) or "python"] + sys.argv[1:]),
-        "sunsim_version": __version__ + (f" (git {_git_commit()})" if _git_commit() else ""),
-    })
-    if study.clouds is not None:
-        ds.attrs.update(study.clouds.attrs(o.clouds))
-    if study.glint is not None:
-        ds.attrs.update(study.glint.attrs())
-    flags, report = check_run(ds)
-    ds["outlier"] = (("time", "diode", "component"), np.stack([flags["direct"], flags["albedo"],
-                                                                     np.zeros_like(flags["direct"])],
-                                                                    axis=-1).astype(np.int8),
-                     {"units": "1", "long_name": "1 where the check's normal score |z| > 4 (or an exact value is off); "
-                                                "reflected is not checked (always 0)"})
-    ds.attrs["check"] = json.dumps(report, sort_keys=True)
-    ds.attrs["check_pass"] = int(report["pass"])
-    return ds, report
-
-
 DEFAULT_FOLDER = "runs"
 
 
@@ -702,7 +251,7 @@ def default_output(opts, folder=DEFAULT_FOLDER):
         path = os.path.join(folder, "default.nc" if i == 1 else f"default-{i}.nc")
         partial = ChunkStore(path, {}).folder
         if os.path.exists(path):
-            if _options_digest(path) == digest:
+            if options_digest(path) == digest:
                 return path
             continue
         if os.path.isdir(partial):
@@ -713,35 +262,18 @@ def default_output(opts, folder=DEFAULT_FOLDER):
     raise OutputError(f"{folder} holds 9999 default runs; give --output")
 
 
-def _options_digest(path):
-    """Return the settings digest of a finished run file, or None if it is not a readable run file."""
-    import h5py
-    try:
-        with h5py.File(path, "r") as f:         # the attributes only: a day's run file holds ~1 GB of arrays
-            options = f.attrs.get("options")
-    except OSError:
-        return None
-    if options is None:
-        return None
-    return spec_digest(json.loads(options.decode() if isinstance(options, bytes) else str(options)))
-
-
 def prepare(opts):
-    """Return a ready :class:`simcore.pipeline.run.PreparedRun` of ``opts`` after every check of its inputs; raise a
-    UserError (nothing written) for the first that fails. ``study.notes`` holds the warnings."""
+    """Return a ready :class:`PreparedRun` of ``opts`` after every check of its inputs; raise a UserError (nothing
+    written) for the first that fails. ``study.notes`` holds the warnings."""
     check_numbers(opts)
     variant = check_variant(opts.variant)
-    study = PreparedRun(opts)
+    study = PreparedRun(opts, variant=variant)
     check_map(study.map, getattr(opts, "allow_bright_map", False))
     if study.config.dead.all():
         raise InvalidInputError(f"all {study.config.n_diodes} diodes of {study.config.name} are dead (--dead "
                                 f"{' '.join(map(str, np.flatnonzero(study.config.dead)))}); leave at least one alive")
-    study.variant = variant
-    notes = [tle_age_note(study.orbit, study.epochs), reflected_ignored_note(opts.reflected_samples, study.config)]
-    check_run_resources(opts, len(study.epochs), study.config.n_diodes, reflected_traced=notes[1] is None)
-    if opts.attitude_file and _schedule.relative_times_csv(opts.attitude_file):
-        notes.append(attitude_times_note(_attitude.Attitude.from_file(opts.attitude_file).t_s, opts.attitude_file))
-    study.notes = [n for n in notes if n] + list(study.plan.notes) + list(study.config.notes)
+    check_run_resources(opts, len(study.epochs), study.config.n_diodes,
+                        reflected_traced=reflected_ignored_note(opts.reflected_samples, study.config) is None)
     return study
 
 
@@ -756,15 +288,14 @@ def execute(opts, *, progress=None, log=None):
     study = prepare(opts)
     for note in study.notes:
         log(f"warning: {note}")
-    if opts.output is None:
+    if opts.output is None:     # the study's options decide the numbers; the store says where they go
         os.makedirs(DEFAULT_FOLDER, exist_ok=True)
         opts = dataclasses.replace(opts, output=default_output(opts))
-        study.opts = opts
     check_writable(opts.output)
     finished = _finished(opts, log)
     if finished is not None:
         return finished
-    store = ChunkStore(opts.output, opts.spec(), writer=_writer(study)).open()
+    store = ChunkStore(opts.output, opts.spec(), writer=writer(study)).open()
     try:
         # Another process may have finished this output while we waited for its lock.
         finished = _finished(opts, log)
@@ -783,7 +314,7 @@ def _finished(opts, log):
     raise if one with other settings stands there (without ``overwrite``)."""
     if not os.path.exists(opts.output):
         return None
-    same = _options_digest(opts.output) == spec_digest(opts.spec())
+    same = options_digest(opts.output) == spec_digest(opts.spec())
     if same:
         log(f"{opts.output} is already finished with identical settings: nothing to render")
         ds = open_run(opts.output)
@@ -819,8 +350,8 @@ def _render_and_write(study, store, progress, log):
 
 
 def _write_chunks_and_file(study, store, todo, bar, n):
-    """Render and store the chunks ``todo``, then write the run file from all of them; return (path, ds, report)."""
-    opts = study.opts
+    """Render and store the chunks ``todo``, then write the run file (``store.final_path``) from all of them;
+    return (path, ds, report)."""
     pending = None          # the chunk being written by the worker thread while the next one renders
     try:
         for start, stop in todo:
@@ -836,101 +367,15 @@ def _write_chunks_and_file(study, store, todo, bar, n):
     if pending is not None:
         pending.result()
     data = store.load_all(n)
-    variant = study._renderer.variant if study._renderer is not None else study.variant
-    ds, report = build_dataset(study, data, variant)
+    ds, report = build_dataset(study, data, study.variant)
 
     def write(tmp):
         add_checksums(ds).to_netcdf(tmp, engine="h5netcdf")
     check_room(store.folder, size_bound(ds))
     # The temporary file lies in the partial folder: a crash here leaves it where the resume cleans up.
-    atomic_write(opts.output, write, tmp_dir=store.folder)
+    atomic_write(store.final_path, write, tmp_dir=store.folder)
     store.remove()
-    return opts.output, ds, report
-
-
-REQUIRED_VARIABLES = ("irradiance", "irradiance_se", "analytic", "analytic_reference", "albedo_discretisation_bound",
-                      "sun_dir_body", "sun_scale", "normal_body", "dead", "illumination", "q_gcrs_from_body", "valid")
-
-
-def open_run(path, note=None):
-    """Return the Dataset of a finished run file, or raise a UserError saying why not (note: verify_checksums's)."""
-    if not os.path.exists(path):
-        raise InputNotFoundError(f"no run file at {path}")
-    if os.path.isdir(path):
-        raise InvalidInputError(f"{path} is a folder, not a run file (.nc); a folder ending in .partial is an "
-                         "unfinished run: finish it by running the same 'sunsim run' command again")
-    try:
-        ds = xr.load_dataset(path, engine="h5netcdf")      # in memory, file closed
-    except Exception as exc:  # h5py/netCDF raise many types for a corrupt file
-        raise InvalidInputError(f"{path} is not a readable netCDF run file ({type(exc).__name__}: {exc}); "
-                         "was it written by 'sunsim run'?") from None
-    missing = [v for v in REQUIRED_VARIABLES if v not in ds]
-    if ds.attrs.get("title") != "sunsim diode irradiance run" or missing:
-        raise InvalidInputError(f"{path} is not a sunsim run file (missing {', '.join(missing) or 'its sunsim title'}); "
-                         "give a file written by 'sunsim run'")
-    return verify_checksums(ds, path, note)
-
-
-def check_run(ds):
-    """Return (flags, report): the analytic check (:mod:`simcore.pipeline.check`) recomputed from a run
-    Dataset's arrays."""
-    n, k = ds.sizes["time"], ds.sizes["diode"]
-    cos_inc = np.clip(np.einsum("nj,kj->nk", ds["sun_dir_body"].values, ds["normal_body"].values), 0.0, None)
-    scale = float(ds.attrs.get("e_sun_w_m2", E_SUN_W_M2)) * ds["sun_scale"].values[:, None]
-    irr, se, ref = ds["irradiance"].values, ds["irradiance_se"].values, ds["analytic_reference"].values
-    dof = ds["irradiance_dof"].values if "irradiance_dof" in ds else np.full(irr.shape, np.inf)
-    valid = np.broadcast_to(ds["valid"].values.astype(bool)[:, None], (n, k))
-    masked = lambda a: np.where(valid, a, np.nan)  # noqa: E731
-    # the direct Sun where extra parts may shadow it: no analytic reference (reported as unchecked)
-    parts = ds["direct_unchecked"].values.astype(bool) if "direct_unchecked" in ds else np.zeros((n, k), bool)
-    masked_direct = lambda a: np.where(valid & ~parts, a, np.nan)  # noqa: E731
-    bound = ds["albedo_discretisation_bound"].values
-    samples = ds["samples"].values
-    components = {
-        "direct": (masked_direct(irr[..., 0]), se[..., 0], dof[..., 0], samples[..., 0], ref[..., 0], 0.0),
-        "albedo": (masked(irr[..., 1]), se[..., 1], dof[..., 1], samples[..., 1], ref[..., 1], bound ** 2),
-    }
-    if "albedo_visibility_error" in ds:
-        components["albedo"] = components["albedo"][:5] + (bound ** 2 + ds["albedo_visibility_error"].values ** 2,)
-    if "direct_plain" in ds:
-        plain = ds["direct_plain"].values
-        # the hint-free estimate always takes the run's first-round count (no target accuracy)
-        n_plain = max(json.loads(ds.attrs["options"]).get("direct_samples", 1024), PLAIN_CHECK_SAMPLES)
-        components["direct_plain"] = (masked_direct(plain[..., 0]), plain[..., 1], plain[..., 2],
-                                      np.where(samples[..., 0] > 0, n_plain, 0), ref[..., 0], 0.0)
-    flags, report = _check.compare(components, k, scale, scale * cos_inc)
-    if ds.sizes["component"] > 2:
-        refl = masked(irr[..., 2])
-        report["reflected_unchecked"] = int(np.count_nonzero(refl > 0))
-    report["direct_unchecked"] = int(np.count_nonzero(parts & valid))
-    if "direct_unchecked_window" in ds:
-        report["direct_unchecked_window"] = int(np.count_nonzero(ds["direct_unchecked_window"].values.astype(bool)
-                                                                 & valid))
-    if "albedo_mesh" in ds:
-        report["albedo_mesh_quadrature"] = int(np.count_nonzero((ds["albedo_mesh"].values > 0)
-                                                                & (ref[..., 1] > _check.ALBEDO_FLOOR_W_M2) & valid))
-    # In the Earth's shadow every value is 0 and agrees trivially: a span without Sun has checked nothing.
-    report["sunlit_epochs"] = int(np.count_nonzero(ds["valid"].values.astype(bool) & (ds["illumination"].values > 0)))
-    if report["sunlit_epochs"] == 0:
-        report["pass"] = False
-        report["verdict"] = "no sunlit data"
-    else:
-        report["verdict"] = "PASS" if report["pass"] else "FAIL"
-    return flags, report
-
-
-def options_of(ds, path):
-    """Return the RunOptions a run file was made with (from its 'options' attribute)."""
-    spec = json.loads(ds.attrs["options"])
-    names = {f.name for f in dataclasses.fields(RunOptions)}
-    kw = _schedule.explicit_options({k: v for k, v in spec.items() if k in names}, ds)
-    for k in ("dead", "spin_axis"):
-        if k in kw:
-            kw[k] = tuple(kw[k])
-    # files written before the solar flux was an option used the thesis' constant 1366.1 W/m^2
-    kw.setdefault("e_sun_w_m2", E_SUN_W_M2)
-    kw.setdefault("distance_scaling", False)
-    return RunOptions(**kw, output=path)
+    return store.final_path, ds, report
 
 
 def recompute_analytic(path, *, chunk=4096, log=None):
@@ -947,25 +392,20 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     mesh, mesh_err = np.zeros(ds["analytic"].shape[:2]), np.zeros(ds["analytic"].shape[:2])
     unchecked, unchecked_window = np.zeros(mesh.shape, bool), np.zeros(mesh.shape, bool)
     for s, e in chunk_ranges(n, chunk):
-        unchecked[s:e], unchecked_window[s:e] = study.direct_unchecked(slice(s, e))
-        a = study.analytic(slice(s, e), study.map, mesh=True, box_albedo=True)
+        unchecked[s:e], unchecked_window[s:e] = study.reference.direct_unchecked(slice(s, e))
+        a = study.reference.analytic(slice(s, e), study.map, mesh=True, box_albedo=True)
         native[s:e, :, 0], native[s:e, :, 1], native_mesh[s:e] = a.direct_w_m2, a.albedo_box_w_m2, a.albedo_w_m2
-        a = study.analytic(slice(s, e), study.map_refined, direct=False, mesh=True)
+        a = study.reference.analytic(slice(s, e), study.map_refined, direct=False, mesh=True)
         fine[s:e], mesh[s:e], mesh_err[s:e] = a.albedo_w_m2, a.albedo_mesh_w_m2, a.albedo_visibility_error_w_m2
         if log:
             log(f"analytic {e}/{n}")
-    data = {"rendered": ds["irradiance"].values, "rendered_se": ds["irradiance_se"].values,
-            "rendered_dof": (ds["irradiance_dof"].values if "irradiance_dof" in ds
-                             else np.full(ds["irradiance"].shape, np.inf)),
-            "direct_plain": (ds["direct_plain"].values if "direct_plain" in ds
-                             else np.full((ds.sizes["time"], ds.sizes["diode"], 3), np.nan)),
-            "samples": ds["samples"].values, "analytic": native, "analytic_albedo_refined": fine,
-            "analytic_albedo_native_mesh": native_mesh, "albedo_mesh": mesh, "albedo_visibility_error": mesh_err,
-            "direct_unchecked": unchecked, "direct_unchecked_window": unchecked_window,
-            "valid": ds["valid"].values.astype(bool)}
+    data = chunk_arrays_of(ds, ("rendered", "rendered_se", "rendered_dof", "direct_plain", "samples", "valid"))
+    data.update({"analytic": native, "analytic_albedo_refined": fine, "analytic_albedo_native_mesh": native_mesh,
+                 "albedo_mesh": mesh, "albedo_visibility_error": mesh_err, "direct_unchecked": unchecked,
+                 "direct_unchecked_window": unchecked_window})
     new, report = build_dataset(study, data, ds.attrs.get("variant", ""))
     new.attrs["software"] = ds.attrs["software"]          # the rendering's versions
-    new.attrs["analytic_recomputed_with"] = json.dumps(_versions(), sort_keys=True)
+    new.attrs["analytic_recomputed_with"] = json.dumps(software_versions(), sort_keys=True)
 
     def write(tmp):
         add_checksums(new).to_netcdf(tmp, engine="h5netcdf")

@@ -1,7 +1,7 @@
 """Which epochs a run renders, and with what attitude: regular grids, explicit (irregular) epochs, and
 recorded attitude histories.
 
-:func:`plan` turns a :class:`simcore.pipeline.run.RunOptions` into a :class:`RunPlan` (orbit, epochs,
+:func:`plan` turns a :class:`simcore.pipeline.options.RunOptions` into a :class:`RunPlan` (orbit, epochs,
 attitude, the history if any, notes), one place for every rule:
 
 * explicit epochs, irregular or not: ``opts.epochs`` (an :class:`Epochs`, in-process) or
@@ -286,18 +286,11 @@ def explicit_options(kw, ds):
     return kw
 
 
-def annotate(ds, study, n):
-    """Return the run Dataset with the full-Sun normal irradiance per epoch and the epochs' and attitude's origin."""
-    o, g = study.opts, study.geometry
-    scale = study.sun_scale(slice(0, n))
-    ds = ds.assign(sun_normal_irradiance=("time", o.e_sun_w_m2 * scale * g.illumination, {
-        "units": "W m-2", "long_name": "full-Sun irradiance at normal incidence at the satellite: e_sun_w_m2 x "
-                                       "sun_scale (distance) x illumination (visible share of the solar disc); "
-                                       "a diode's reading over full Sun is its irradiance over this"}))
-    p = getattr(study, "plan", None)
-    if p is not None:
-        ds.attrs["epochs_source"] = p.source
-        if p.history is not None:
-            ds.attrs["attitude_history"] = p.history.summary()
-            ds.attrs["attitude_frame"] = p.history.frame
+def annotate(ds, plan):
+    """Return the run Dataset ``ds`` with the origin of its epochs and attitude (``plan``: the run's
+    :class:`RunPlan`) in its attributes."""
+    ds.attrs["epochs_source"] = plan.source
+    if plan.history is not None:
+        ds.attrs["attitude_history"] = plan.history.summary()
+        ds.attrs["attitude_frame"] = plan.history.frame
     return ds

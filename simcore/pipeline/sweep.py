@@ -23,7 +23,8 @@ import xarray as xr
 from scenes.config import SatelliteConfig
 from simcore.environment.epochs import Epochs
 
-from simcore.pipeline.run import execute, open_run
+from simcore.pipeline.run import execute
+from simcore.pipeline.runfile import open_run
 from simcore.pipeline.store import atomic_write, spec_digest
 
 

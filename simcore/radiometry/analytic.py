@@ -82,7 +82,7 @@ class DirectionVisibility:
     the body or of other parts cross the diode, and inside them the visible share of the diode's lit
     part (0..1) on a grid ``sub`` times finer (``fine``, (K, n_theta sub, n_phi sub)) and on one half as
     fine (``half``, for the error of the quadrature), e.g. from
-    ``simcore.render.irradiance.Renderer.visible_share``. The albedo from marked cells is the well's
+    ``simcore.render.Renderer.visible_share``. The albedo from marked cells is the well's
     response times the fine share (nearest cell); elsewhere the body box at the diode's centre decides.
     """
 

@@ -199,7 +199,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     """
     # (a round well's box visibility is that of the square inscribed in its rim, CircularWell.rims: exact where
     # the box cannot shade the diode, the Sun above its panel's plane; elsewhere the check leaves it out,
-    # simcore.pipeline.run.PreparedRun.round_well_shadow)
+    # simcore.pipeline.reference.CheckReference.round_well_shadow)
     if body is not None and not all(isinstance(r, _WELLS) for r in resps):
         raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture or CircularWell responses")
     n_ep, K = sun_body.shape[0], len(frames)

@@ -22,7 +22,7 @@ outside the footprint contributes nothing.
 :class:`WindowedWell` is the closed-form angular response of a diode in a well under such a window (the
 analytic model's reference): per term, the part of the well's lit rectangle whose exit point stays in the
 footprint is a rectangle overlap. The renderer traces the same slab per sample
-(``simcore.render.irradiance``).
+(``simcore.render.windows``).
 """
 from dataclasses import dataclass
 

@@ -4,7 +4,7 @@ self-shadowing and a height x tilt x FOV sweep.
 What each part answers (the models it compares):
 
 * :func:`traced_black_response` -- the response of one diode in its well with black
-  walls, ray traced by :class:`simcore.render.irradiance.Renderer` (the floor and well meshes of
+  walls, ray traced by :class:`simcore.render.Renderer` (the floor and well meshes of
   :func:`scenes.meshes.mount_meshes`), for any set of directions; compared with the
   analytic overlap (:meth:`simcore.shapes.aperture.WellAperture.response`) and with thesis
   eq. 4.15 (:class:`simcore.radiometry.response.Eq415Response`) by :func:`angular_cuts`,
@@ -53,7 +53,7 @@ from simcore.pipeline.evaluate import error_table, errors, measure, run_estimato
 from simcore.plots import plot_sweep
 from simcore.radiometry.analytic import diode_irradiance
 from simcore.radiometry.response import Eq415Response
-from simcore.render.irradiance import Renderer
+from simcore.render import Renderer
 from simcore.sensor.chain import DIODES
 from simcore.shapes.aperture import EQ415_CUTOFF_DEG, CircularWell, WellAperture
 from simcore.shapes.occlusion import direct_visibility
@@ -104,7 +104,7 @@ def well_config(aperture, material="black"):
 
 def traced_black_response(aperture, d_diode, *, samples=4096, seed=0, control_variate=False, variant=None):
     """Return (response (M,), standard error (M,)): the diode's response in its black-walled well for
-    unit directions ``d_diode`` (M, 3) (diode frame), ray traced by :class:`simcore.render.irradiance.Renderer`
+    unit directions ``d_diode`` (M, 3) (diode frame), ray traced by :class:`simcore.render.Renderer`
     against the well's floor and wall meshes (:func:`scenes.meshes.mount_meshes`).
 
     ``samples``: direct samples per direction (4 m^2, see ``Renderer.render``). ``control_variate``:
@@ -188,7 +188,7 @@ class WallResponse:
 
 
 def well_renderer(aperture, material, floor_material=None, *, variant=None, max_depth=_WALL_MAX_DEPTH):
-    """Return a :class:`simcore.render.irradiance.Renderer` (E_sun = 1, point Sun for the direct part) of the
+    """Return a :class:`simcore.render.Renderer` (E_sun = 1, point Sun for the direct part) of the
     diode of :func:`well_config` with its floor plate and well walls as meshes (:func:`scenes.meshes.mount_meshes`):
     the walls of ``material`` and the floor of ``floor_material`` (None: the walls' material: one part)."""
     cfg = well_config(aperture, material)
@@ -212,7 +212,7 @@ def wall_response(aperture, d_diode, material, *, samples=16384, seed=0, floor_m
     floor plate are of ``material`` (a :mod:`scenes.materials` name or a Mitsuba BSDF dict, e.g.
     ``{"type": "diffuse", "reflectance": 0.04}``) to the Sun along unit directions ``d_diode`` (M, 3) (diode
     frame u, v, n, towards the Sun): (direct + reflected) / E_sun, path traced by
-    :class:`simcore.render.irradiance.Renderer` with ``samples`` reflected paths per direction (4 m^2) and
+    :class:`simcore.render.Renderer` with ``samples`` reflected paths per direction (4 m^2) and
     ``seed``. Directions behind the diode (d_n <= 0) read 0 at no cost. ``floor_material``: the floor
     plate's own material (None: the walls'). ``renderer``: one from :func:`well_renderer` to reuse.
     """

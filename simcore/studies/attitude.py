@@ -28,7 +28,7 @@ def default_page(folder, span, thermal_compensation=False):
 def _task(path, gyro, seed, onboard, magnetometer, thermal_compensation=False):
     """One evaluation (runs in a Dask worker): the MEKF summary of one run file."""
     from simcore.pipeline.evaluate_attitude import run_mekf
-    from simcore.pipeline.run import open_run
+    from simcore.pipeline.runfile import open_run
     return run_mekf(open_run(path), path, gyro=gyro, magnetometer=magnetometer, seed=seed,
                     onboard_albedo=onboard, thermal_compensation=thermal_compensation)["summary"]
 
@@ -139,7 +139,7 @@ def _figures(results, page_folder, paths, log):
                            os.path.join(page_folder, f"{key}.png"))
     # One time series: the best-ranked FOV-70 layout, flown gyro vs recommended, seed 0, on-board albedo.
     from simcore.pipeline.evaluate_attitude import run_mekf
-    from simcore.pipeline.run import open_run
+    from simcore.pipeline.runfile import open_run
     cfg = "tilt20_fov70" if "tilt20_fov70" in paths else configs[0]
     for g in dict.fromkeys([gyros[0], "BMG160" if "BMG160" in gyros else gyros[-1], gyros[-1]]):
         res = run_mekf(open_run(paths[cfg]), paths[cfg], gyro=g, magnetometer=results["magnetometer"], seed=0,

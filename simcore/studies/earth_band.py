@@ -32,7 +32,8 @@ from matplotlib.figure import Figure
 
 from estimators.metrics import hanning_mean_std
 from simcore.errors import InvalidInputError
-from simcore.pipeline.run import PreparedRun, execute, open_run
+from simcore.pipeline.run import PreparedRun, execute
+from simcore.pipeline.runfile import open_run
 from simcore.plots import save_figure
 from simcore.radiometry import band
 from simcore.radiometry.glint import check_wind

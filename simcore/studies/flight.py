@@ -249,9 +249,9 @@ class Prediction:
 
 def run_options(telemetry, scene, tle, reflectivity, *, clouds=None, seed=0, folder="runs/flight-check",
                 names=None):
-    """Return the :class:`simcore.pipeline.run.RunOptions` that render ``scene`` at the telemetry's epochs with
+    """Return the :class:`simcore.pipeline.options.RunOptions` that render ``scene`` at the telemetry's epochs with
     its recorded attitude (one process, every pass), writing under ``folder`` (an identical earlier run is reused)."""
-    from simcore.pipeline.run import RunOptions
+    from simcore.pipeline.options import RunOptions
     names = list(names or telemetry.names)
     config = scene_for(scene, names, os.path.join(folder, "scenes"))
     return RunOptions(config=config, tle=str(tle), epochs=telemetry.epochs, attitude_history=telemetry.history,
@@ -261,7 +261,7 @@ def run_options(telemetry, scene, tle, reflectivity, *, clouds=None, seed=0, fol
 def predict(telemetry, scene, tle, reflectivity=DEFAULT_MAP, *, clouds=None, seed=0, folder="runs/flight-check",
             log=None):
     """Render ``scene`` at the telemetry's epochs and return the :class:`Prediction` of its diodes."""
-    from simcore.pipeline import run as _run
+    from simcore.pipeline import run as _run, schedule as _schedule
     opts = run_options(telemetry, scene, tle, reflectivity, clouds=clouds, seed=seed, folder=folder)
     os.makedirs(folder, exist_ok=True)
     opts = dataclasses.replace(opts, output=_run.default_output(opts, folder=folder), fail_on_check=False)
@@ -276,7 +276,7 @@ def predict(telemetry, scene, tle, reflectivity=DEFAULT_MAP, *, clouds=None, see
     se = ds["irradiance_se"].values[:, order, :] / e_norm[:, None, None]
     normals = ds["normal_body"].values[order]
     sun_body = ds["sun_dir_body"].values
-    _, _, geometry = _run.study_geometry(opts)
+    _, _, geometry = _schedule.study_geometry(opts)
     cos_direct, unit = plain_cosine(geometry, normals)
     return Prediction(names=list(telemetry.names), total=irr.sum(axis=-1), direct=irr[..., 0], albedo=irr[..., 1],
                       reflected=irr[..., 2], se=np.sqrt((se ** 2).sum(axis=-1)),

@@ -70,7 +70,7 @@ def rate_errors(res, dt_s, windows=WINDOWS_S):
 def rate_study(run_path, page_folder, *, gyros=GYROS, seeds=(0,), log=print):
     """Run the MEKF per gyro and seed on ``run_path`` and write the rate section into ``page_folder``; return its path."""
     from simcore.pipeline.evaluate_attitude import run_mekf
-    from simcore.pipeline.run import open_run
+    from simcore.pipeline.runfile import open_run
     from simcore.sensor.gyro import gyro_spec
     specs = {g: gyro_spec(g) for g in gyros}                      # names checked before any work
     ds = open_run(run_path)

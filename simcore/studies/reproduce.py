@@ -33,7 +33,9 @@ from estimators.metrics import hanning_mean_std
 from simcore.constants import E_SUN_W_M2
 from simcore.errors import InvalidInputError
 from simcore.pipeline.evaluate import run_errors
-from simcore.pipeline.run import RunOptions, PreparedRun, execute, open_run
+from simcore.pipeline.options import RunOptions
+from simcore.pipeline.run import PreparedRun, execute
+from simcore.pipeline.runfile import open_run
 from simcore.pipeline.store import chunk_ranges
 from simcore.radiometry.analytic import diode_irradiance
 from simcore.radiometry.response import Eq415Response
@@ -93,9 +95,9 @@ class FailedCheckError(InvalidInputError):
 
 def read_check(path):
     """Return the analytic check of a run file as this version of sunsim makes it from the file's arrays
-    (:func:`simcore.pipeline.run.check_run`; the ``check`` attribute the file was written with may come
+    (:func:`simcore.pipeline.runfile.check_run`; the ``check`` attribute the file was written with may come
     from an older check)."""
-    from simcore.pipeline.run import check_run, open_run
+    from simcore.pipeline.runfile import check_run, open_run
     return check_run(open_run(path))[1]
 
 

@@ -25,7 +25,7 @@ from scenes.satellite import Satellite
 from simcore.constants import EQ415_CUTOFF_COS
 from simcore.errors import InvalidInputError
 from simcore.radiometry.response import Eq415Response
-from simcore.render.irradiance import Renderer
+from simcore.render import Renderer
 from simcore.sensor.errors import basilisk_response
 from simcore.shapes.window import WindowedWell
 

@@ -33,10 +33,10 @@ So the wavelengths come from ``Sensor.sample_wavelengths`` (four per lane, shift
 class spectra, S and E are ``irregular`` textures. The srf's pdf is linear between the nodes of S and E
 where S E is quadratic, so each wavelength is weighted S E / p (exact expectation, not the srf's integral).
 
-Variants: Mitsuba's variant is process-global and the renderer (:mod:`simcore.render.irradiance`) uses
+Variants: Mitsuba's variant is process-global and the renderer (:mod:`simcore.render`) uses
 ``llvm_ad_mono``. Everything here runs inside :func:`_spectral_variant`, which sets ``llvm_ad_spectral`` and
 restores the caller's variant afterwards (``mi.variant_context`` refuses when no variant was set; then the
-spectral one stays, and a :class:`~simcore.render.irradiance.Renderer` sets its own on every render anyway).
+spectral one stays, and a :class:`~simcore.render.Renderer` sets its own on every render anyway).
 A mono render before and after a spectral estimate gives identical results (tests/test_spectral_check.py).
 """
 from contextlib import contextmanager

@@ -1,0 +1,424 @@
+"""The renderer's shared base: Mitsuba variants, task lanes and launches (packets, ``drjit.freeze`` replay), the
+random numbers (TEA, PCG32, the host's key hash), and the host-side helpers every estimator uses (docs/renderer.md)."""
+import contextlib
+from dataclasses import dataclass, replace
+import gc
+import os
+import threading
+import weakref
+
+import numpy as np
+
+from simcore import _llvm
+from simcore._llvm import host_array, host_buffer, host_wrap
+from simcore.constants import AU_M, R_SUN_M
+
+SUN_ANGULAR_RADIUS_RAD = float(np.arcsin(R_SUN_M / AU_M))  # 0.2666 deg: the 0.53 deg disc at 1 AU
+
+_VARIANTS = ("llvm_ad_mono", "cuda_ad_mono")
+# Rounds of the TEA hash behind every random number (in the direct and albedo kernels: behind a lane's first two
+# and the PCG32 state that supplies the rest, Launcher._rand). Mitsuba's default, 4, is meant for seeding: with it
+# the two samples of a stratum (consecutive lanes) come out correlated and the pair estimate of the
+# variance reads ~8 % low (albedo z spread 1.09 over 4200 diode-epochs; 1.025 with 8 rounds, 1.006 with
+# 16, 0.995 with 32).
+_TEA_ROUNDS = 32
+_MAX_LANES = 1 << 22      # lanes per launch (memory bound, ~100 MB of temporaries)
+# Lanes: each task's rays start on a multiple of this (Dr.Jit's CPU packets and Embree's ray packets hold at most 16
+# rays), so that no packet mixes two tasks' rays. Embree's packet traversal can decide a ray that grazes an edge
+# differently with other rays beside it (seen: 1 lane of 28 224 flipped with the epochs batched together, moving its
+# diode-epoch by 0.02 %); a task's values then depended on the batch, and a run resumed with another --chunk on them.
+_PACKET = 16
+# Variants whose direct, albedo and proposal kernels are recorded once and replayed (Launcher._run).
+_FREEZE_VARIANTS = ("llvm_ad_mono",)
+
+
+# --------------------------------------------------------------------------- variants
+
+def _anchored(dr, lanes, values):
+    """Return a kernel's per-lane ``values`` passed through a select on the lanes' counter (always true: a launch
+    holds < 2^32 - 1 lanes; the values are unchanged), so that a result the tracer folds to a constant still has
+    one value per lane of the launch (Launcher._run)."""
+    return dr.select(lanes.lane != 0xFFFFFFFF, values, 0.0)
+
+
+def _cuda_works():
+    """Return True when Dr.Jit can use a CUDA device in this process."""
+    dr = _llvm.import_drjit()
+    try:
+        return bool(dr.has_backend(dr.JitBackend.CUDA))
+    except Exception:  # a broken driver is "no GPU" here
+        return False
+
+
+def choose_variant(requested=None):
+    """Return the Mitsuba variant to render with: 'cuda_ad_mono' when a CUDA GPU works,
+    else 'llvm_ad_mono'; ``requested`` forces one and raises if it cannot run here.
+
+    Raises ``ValueError`` for an unknown variant, ``RuntimeError`` when a CUDA
+    variant is requested without a working GPU, and
+    ``simcore._llvm.LLVMNotFoundError`` (with the install hint) when no usable
+    libLLVM exists: Dr.Jit's CPU backend is needed with either variant.
+    """
+    if requested is not None and requested not in _VARIANTS:
+        raise ValueError(f"unknown render variant {requested!r}; use one of {_VARIANTS} "
+                         "or None to pick the GPU when there is one")
+    variant = "llvm_ad_mono"
+    if requested in (None, "cuda_ad_mono"):
+        _llvm.import_mitsuba()  # loads drjit's backends
+        if _cuda_works():
+            variant = "cuda_ad_mono"
+        elif requested is not None:
+            raise RuntimeError("variant 'cuda_ad_mono' was requested but no working CUDA GPU was found "
+                               "(Dr.Jit reports no CUDA backend); use variant='llvm_ad_mono' or None "
+                               "to render on the CPU")
+    # Dr.Jit's CPU backend, whichever variant renders: the analytic model's and the body shadow's float64 kernels
+    # (simcore.radiometry.analytic, simcore.shapes.occlusion) run on it on a GPU machine too. Without it the first
+    # of them dies (SIGFPE, seen on an H100 with no libLLVM) instead of saying what is missing.
+    _llvm.find_libllvm()
+    dr = _llvm.import_drjit()
+    if not dr.has_backend(dr.JitBackend.LLVM):
+        raise _llvm.LLVMNotFoundError(
+            f"Dr.Jit could not load the libLLVM at {os.environ.get(_llvm.ENV)!r} (its CPU backend runs the analytic "
+            "model whichever variant renders). " + _llvm.INSTALL_HINT)
+    return variant
+
+
+# --------------------------------------------------------------------------- random numbers and lanes
+
+def _mix32(*parts):
+    """Return a uint32 hash of integer arrays (splitmix64 chain), broadcast together."""
+    m = np.uint64(0xFFFFFFFFFFFFFFFF)
+    h = np.zeros(np.broadcast(*[np.asarray(p) for p in parts]).shape, dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        for p in parts:
+            h = (h ^ (np.asarray(p).astype(np.uint64) & m)) + np.uint64(0x9E3779B97F4A7C15)
+            h = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+            h = (h ^ (h >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+            h = h ^ (h >> np.uint64(31))
+    return (h & np.uint64(0xFFFFFFFF)).astype(np.uint32)
+
+
+# set of tasks (Launcher._tables) and read at the task's "row"; every other field of a task dict is a column of
+# _Lanes.f or _Lanes.u.
+_TABLES = ("cdf", "pmf", "tedge", "tlevel")
+
+
+@dataclass
+class _Lanes:
+    """One launch's inputs as Dr.Jit arrays, for the kernels: the tasks' float fields packed row by row in one
+    float32 array ``f`` (T rows of ``nf`` columns) and their integer fields in one uint32 array ``u`` (``nu``
+    columns), ``layout`` naming the columns ((field, first column, width, in u), ...); ``tables`` the per-task
+    tables (``_TABLES``), the renderer's own (reflectivity map, visibility table) and the task of each packet of
+    lanes; ``lane`` the lanes' counter 0 .. n - 1; ``scene`` the occluders (or None); ``task`` and ``j``, the lane's
+    task and sample index, are found in the kernel (Launcher._with_indices).
+
+    Packed so that a launch costs two uploads (:func:`simcore._llvm.host_array`, ~24 us each) rather than one per
+    field and column (~36 a launch). A dataclass so that ``drjit.freeze`` traverses it (Launcher._run): its
+    arrays are the frozen kernels' inputs, and ``layout``, ``nf`` and ``nu`` (Python values) are part of the
+    recording's key."""
+
+    f: object
+    u: object
+    tables: dict
+    layout: tuple
+    nf: int
+    nu: int
+    lane: object
+    scene: object = None
+    task: object = None
+    j: object = None
+
+    def column(self, name):
+        """Return (first column, width, in u) of field ``name``."""
+        for entry in self.layout:
+            if entry[0] == name:
+                return entry[1:]
+        raise KeyError(name)
+
+    def has(self, name):
+        """Return whether the tasks carry field ``name``."""
+        return any(entry[0] == name for entry in self.layout) or name in self.tables
+
+
+def occluder_scene(mesh, mi):
+    """Return a Mitsuba scene of a ``trimesh.Trimesh`` (body frame, metres, satellite at the origin) that only
+    blocks rays (no materials), for ``scene.ray_test``; None for an empty mesh. ``mi``: the mitsuba module with
+    its variant set."""
+    if mesh is None or len(getattr(mesh, "faces", ())) == 0:
+        return None
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if not np.all(np.isfinite(v)):
+        raise ValueError("occluder mesh has non-finite vertices")
+    if np.abs(v).max() > 100.0:
+        raise ValueError("occluder mesh spans more than 100 m from the body origin; it must be the "
+                         "satellite in body axes, in metres, centred on the satellite")
+    m = mi.Mesh("occluders", len(v), len(f), has_vertex_normals=False, has_vertex_texcoords=False)
+    params = mi.traverse(m)
+    params["vertex_positions"] = host_array(mi.Float, v)
+    params["faces"] = host_array(mi.UInt32, f)
+    params.update()
+    return mi.load_dict({"type": "scene", "occluders": m})
+
+
+class _DrOps:
+    """Dr.Jit's functions under the names of simcore.shapes.aperture's array-library neutral formulas."""
+
+    def __init__(self, dr):
+        self.maximum, self.minimum, self.where = dr.maximum, dr.minimum, dr.select
+        self.sqrt, self.asin, self.exp, self.erf = dr.sqrt, dr.asin, dr.exp, dr.erf
+
+
+def rays_blocked(scene, origins, directions, mi):
+    """Return (M,) bool: whether each ray (origins, unit directions (M, 3), body frame) meets the occluders of
+    ``scene`` (:func:`occluder_scene`)."""
+    o = np.asarray(origins, dtype=np.float32).reshape(-1, 3)
+    d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
+    ray = mi.Ray3f(mi.Point3f(*(host_array(mi.Float, o[:, i]) for i in range(3))),
+                   mi.Vector3f(*(host_array(mi.Float, d[:, i]) for i in range(3))))
+    return np.asarray(scene.ray_test(ray).numpy(), bool)
+
+
+class Launcher:
+    """The launch machinery of :class:`simcore.render.renderer.Renderer` (a mixin: it reads the renderer's
+    ``_dr``, ``_mi``, ``variant``, ``_scene``, reflectivity and visibility tables and ``_kernel_state``)."""
+
+    # -- helpers for Dr.Jit
+    def _v3(self, arr):
+        mi = self._mi
+        a = np.asarray(arr, dtype=np.float32)
+        return mi.Vector3f(*(host_array(mi.Float, a[:, i]) for i in range(3)))
+
+    def _gather3(self, src, idx):
+        dr, mi = self._dr, self._mi
+        return mi.Vector3f(dr.gather(mi.Float, src.x, idx), dr.gather(mi.Float, src.y, idx),
+                           dr.gather(mi.Float, src.z, idx))
+
+    def _tables(self, t):
+        """Return the tables (``_TABLES``) of the tasks ``t`` as Dr.Jit arrays (row-major, one row a task), uploaded
+        once for all of them, and ``row`` (T,): each task's row, the column the kernels read the tables at
+        (whatever round or launch the task's lanes fall in: a round repeats a task in two groups, and the tables
+        are ~4 kB a task)."""
+        if any(t.get(k) is not None and not isinstance(t[k], np.ndarray) for k in _TABLES):
+            # (tables already uploaded: their rows are those of the tasks they were uploaded for, which a subset's
+            # new row numbers would no longer match)
+            raise ValueError("_tables takes the tasks' numpy tables, not tables already uploaded")
+        out = {k: host_array(self._mi.Float, t[k]) for k in _TABLES if isinstance(t.get(k), np.ndarray)}
+        out["row"] = np.arange(len(t["k"]), dtype=np.uint32)
+        return out
+
+    def _lanes(self, t, n_lanes, packet=None):
+        """Return the :class:`_Lanes` of tasks ``t`` (a dict of per-task numpy fields, None where absent) for a
+        launch of ``n_lanes`` lanes; ``packet``: the task of each packet of lanes (:meth:`_launches`).
+
+        Integer fields (and ``m``, the strata parameter, which the kernels read as an integer) become uint32
+        columns; ``m`` also gives the float columns ``inv_m`` (1 / m) and ``half_inv_m`` (0.5 / m), divided in
+        float64 as the kernels' inputs always were; the rest float32 columns (rounded from float64 once, on
+        assignment, as a separate upload of each field rounded them)."""
+        dr, mi = self._dr, self._mi
+        T = len(t["key"])
+        layout, tables, fields = [], {}, []
+        nf = nu = 0
+        for name, v in t.items():
+            if v is None:
+                continue
+            if name in _TABLES:
+                tables[name] = v                    # uploaded once for all the tasks (_tables)
+                continue
+            v = np.asarray(v)
+            if name == "m":
+                parts = [(name, v.astype(np.uint32), True), ("inv_m", 1.0 / v, False), ("half_inv_m", 0.5 / v, False)]
+            else:
+                parts = [(name, v, v.dtype.kind in "iub")]
+            for name_, v_, integer in parts:
+                v_ = v_.reshape(T, -1)
+                layout.append((name_, nu if integer else nf, v_.shape[1], integer))
+                fields.append(v_)
+                if integer:
+                    nu += v_.shape[1]
+                else:
+                    nf += v_.shape[1]
+        # filled in place in Dr.Jit-safe buffers and handed over without another copy (simcore._llvm.host_buffer)
+        f, u = host_buffer(T * nf, np.float32), host_buffer(T * nu, np.uint32)
+        f2, u2 = f.reshape(T, nf), u.reshape(T, nu)
+        for (_, c, w, integer), v in zip(layout, fields):
+            (u2 if integer else f2)[:, c:c + w] = v
+        tables["refl"] = self._refl_dr
+        tables["refl_max"] = self._refl_max_dr
+        if self._sea_dr is not None:
+            tables["sea"] = self._sea_dr
+            tables["sea_max"] = self._sea_max_dr
+        if self._vis is not None:
+            tables["vis"] = self._vis
+        if packet is not None:
+            # (a 1-element array would be a literal baked into the kernel: a lone packet gets an unread second)
+            tables["packet"] = host_array(mi.UInt32, packet if len(packet) > 1 else np.concatenate([packet, packet]))
+        # The lanes' counter, evaluated: the one array the kernels read lane by lane, which gives a frozen kernel
+        # its launch size (_run)
+        lane = dr.arange(mi.UInt32, n_lanes)
+        dr.make_opaque(lane)
+        return _Lanes(host_wrap(mi.Float, f), host_wrap(mi.UInt32, u), tables, tuple(layout), nf, nu, lane, self._scene)
+
+    def _run(self, kernel, lanes, *args):
+        """Return ``kernel(lanes, *args)`` (a Dr.Jit array), the direct, albedo and proposal kernels replayed from a
+        ``drjit.freeze`` recording: traced once per layout of their inputs, then launched without tracing again
+        (docs/renderer.md, "Why replaying a recording is sound")."""
+        if kernel.__name__ == "_reflected_kernel":
+            return kernel(lanes, *args)
+        if self.variant not in _FREEZE_VARIANTS:
+            return _anchored(self._dr, lanes, kernel(lanes, *args))
+        frozen = self._frozen.get(kernel.__name__)
+        if frozen is None:
+            dr = self._dr
+            # Weak references to the renderer: the wrappers it holds must not hold it, or it would die only in the
+            # cycle collector, at any time, possibly inside another recording, where releasing its numpy-backed
+            # arrays aborts the process (Dr.Jit 1.5: "enqueue_host_func(): this function cannot be recorded!").
+            kernel_ref, state_ref = weakref.WeakMethod(kernel), weakref.WeakMethod(self._kernel_state)
+
+            def anchored(lanes, *args):
+                # a recording of a kernel folded to a constant would hand back a constant of the recorded launch's
+                # size: anchored, it is a kernel whose size is the lanes'
+                return _anchored(dr, lanes, kernel_ref()(lanes, *args))
+            frozen = self._frozen[kernel.__name__] = dr.freeze(
+                anchored, state_fn=lambda *a, **k: state_ref()(*a, **k))
+        # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
+        # arrays, released inside the frozen call, would abort the process as above.
+        with _no_cycle_collection(), _llvm.FROZEN_CALLS:    # (see _llvm.FROZEN_CALLS: another thread's Dr.Jit work)
+            return frozen(lanes, *args)
+
+    def _col(self, a, name, i=0):
+        """Return column ``i`` of field ``name`` of the lanes' tasks (:class:`_Lanes`): mi.Float, or mi.UInt32 for
+        an integer field."""
+        dr, mi = self._dr, self._mi
+        c, _, in_u = a.column(name)
+        if in_u:
+            return dr.gather(mi.UInt32, a.u, a.task * a.nu + (c + i))
+        return dr.gather(mi.Float, a.f, a.task * a.nf + (c + i))
+
+    def _vec(self, a, name, row=0):
+        """Return the 3-vector ``row`` (columns 3 row .. 3 row + 2) of field ``name`` of the lanes' tasks."""
+        return self._mi.Vector3f(*(self._col(a, name, 3 * row + i) for i in range(3)))
+
+    def _rand(self, key, j, k):
+        """Return 2k uniform [0, 1) floats per lane: the two of TEA(key, j*k) (``_TEA_ROUNDS`` rounds: the lane's
+        numbers independent of its neighbours'), then 2k - 2 from a PCG32 generator that those two 32-bit words
+        seed (its state; one multiply-add a number instead of ~30 rounds of TEA)."""
+        mi = self._mi
+        a, b = mi.sample_tea_32(key, j * k, _TEA_ROUNDS)
+        out = [mi.Float(a >> 8) * (1.0 / 16777216.0), mi.Float(b >> 8) * (1.0 / 16777216.0)]
+        if k > 1:
+            rng = mi.PCG32()
+            rng.seed(initstate=(mi.UInt64(a) << 32) | mi.UInt64(b))
+            out += [mi.Float(rng.next_uint32() >> 8) * (1.0 / 16777216.0) for _ in range(2 * k - 2)]
+        return out
+
+    def _blocked_by_mesh(self, a, o, d, active=True):
+        """Return whether the ray from ``o`` along ``d`` meets the mesh (``a.scene``, :class:`_Lanes`); False for
+        lanes not ``active`` (those whose value cannot depend on it: their rays are not traced)."""
+        if a.scene is None:
+            return self._mi.Bool(False)       # (a scalar, no array of a recorded launch's width)
+        return a.scene.ray_test(self._mi.Ray3f(o, d), active)
+
+    # -- lanes: task k owns counts[k] consecutive lanes (its samples), split into launches
+    def _launches(self, counts):
+        """Yield (task slice, the task of each packet of ``_PACKET`` lanes (np.uint32), each task's first lane
+        (np.uint32)) per launch, for tasks of ``counts`` (T,) samples each, positive multiples of ``_PACKET``.
+
+        Per packet rather than per lane: the kernels find a lane's task and sample index from these
+        (:meth:`_with_indices`), so that the host builds 1/16 of the lanes' worth of indices."""
+        if len(counts) and (counts.min() < 1 or np.any(counts % _PACKET)):
+            raise ValueError(f"every task needs a positive multiple of {_PACKET} samples, got counts "
+                             f"{counts.min()} .. {counts.max()}")
+        ends = np.cumsum(counts)
+        start = 0
+        while start < len(counts):
+            base = ends[start] - counts[start]
+            stop = int(np.searchsorted(ends, base + _MAX_LANES, side="right"))
+            stop = max(stop, start + 1)
+            if stop == start + 1 and len(counts) > start + 1:
+                stop = start + 2                  # keep >= 2 tasks: a 1-element array is a literal
+            sl = slice(start, stop)
+            c = counts[sl]                                    # (a launch holds < 2^32 lanes)
+            yield sl, np.repeat(np.arange(len(c), dtype=np.uint32), c // _PACKET), (np.cumsum(c) - c).astype(np.uint32)
+            start = stop
+
+    def _with_indices(self, a):
+        """Return the lanes ``a`` (:class:`_Lanes` of a :meth:`_trace` launch) with each lane's task and sample index
+        (``task``, ``j``): the task of its packet (``tables['packet']``) and its offset from the task's first lane
+        (column ``first``)."""
+        dr, mi = self._dr, self._mi
+        task = dr.gather(mi.UInt32, a.tables["packet"], a.lane >> int(np.log2(_PACKET)))
+        a = replace(a, task=task)
+        return replace(a, j=a.lane - self._col(a, "first"))
+
+    def _trace(self, kernel, t, counts):
+        """Return the per-lane values (sum(counts),) float32 of ``kernel`` over tasks ``t`` (their lanes laid out task
+        after task, each task's first lane on a multiple of ``_PACKET``)."""
+        T = len(counts)
+        if T < 2:                                 # a 1-element array would be baked in as a literal
+            t = _pad2(t)
+            return self._trace(kernel, t, np.concatenate([counts, [2]]))[:int(counts.sum())]
+        # each task's lanes start on a packet boundary (the extra lanes, samples past its count, are dropped)
+        padded = -(-counts // _PACKET) * _PACKET
+        out = []
+        for sl, packet, first in self._launches(padded):
+            sub = dict(_take(t, sl), first=first)
+            if sl.stop - sl.start < 2:
+                sub = _pad2(sub)
+            out.append(self._run(kernel, self._lanes(sub, len(packet) * _PACKET, packet)).numpy())
+        vals = out[0] if len(out) == 1 else np.concatenate(out)
+        if np.array_equal(padded, counts):
+            return vals
+        return vals[np.repeat(np.tile([True, False], len(counts)), np.column_stack([counts, padded - counts]).ravel())]
+
+    def _trace_tasks(self, kernel, t, n_points):
+        """Return ``kernel(lanes, n_points)`` (T, n_points) for the tasks ``t`` in launches of bounded size."""
+        T = len(t["key"])
+        if T < 2:
+            return self._trace_tasks(kernel, _pad2(t), n_points)[:T]
+        t = dict(t, **self._tables(t))
+        per = max(2, _MAX_LANES // n_points)
+        n = -(-T // per)
+        edges = np.linspace(0, T, n + 1).round().astype(int)
+        out = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            lanes = self._lanes(_take(t, slice(a, b)), (b - a) * n_points)
+            out.append(self._run(kernel, lanes, n_points).numpy().reshape(b - a, n_points))
+        return np.concatenate(out)
+
+
+_GC_GUARD = threading.Lock()
+_GC_STATE = {"depth": 0, "was_enabled": False}
+
+
+@contextlib.contextmanager
+def _no_cycle_collection():
+    """Switch Python's cycle collector off for the duration (Launcher._run's frozen calls), and back on when the last
+    of the threads inside such a block leaves it, if it was on before the first entered (a plain disable/enable per
+    call would let one thread's exit switch it on while another records)."""
+    with _GC_GUARD:
+        if _GC_STATE["depth"] == 0:
+            _GC_STATE["was_enabled"] = gc.isenabled()
+            gc.disable()
+        _GC_STATE["depth"] += 1
+    try:
+        yield
+    finally:
+        with _GC_GUARD:
+            _GC_STATE["depth"] -= 1
+            if _GC_STATE["depth"] == 0 and _GC_STATE["was_enabled"]:
+                gc.enable()
+
+
+def _pad2(t):
+    """Return the task dict padded to >= 2 tasks (a 1-element Dr.Jit array would become a
+    literal baked into the kernel, so every new value would compile a new kernel)."""
+    if len(t["key"]) >= 2:
+        return t
+    return {k: (np.concatenate([v, v]) if isinstance(v, np.ndarray) else v) for k, v in t.items()}
+
+
+def _take(t, idx):
+    """Return the task dict ``t`` of the tasks ``idx`` (indices or a slice): its numpy fields indexed, the rest (None,
+    and the tables uploaded once for all its tasks, Launcher._tables) as they are."""
+    return {k: (v[idx] if isinstance(v, np.ndarray) else v) for k, v in t.items()}
