@@ -28,11 +28,10 @@ def test_diodes_are_the_configurations_and_built_once(sat):
     assert ds.apertures == tuple(d.aperture for d in cfg.diodes)
 
 
-def test_old_homes_still_name_the_same_classes():
+def test_the_renderer_and_the_analytic_model_name_the_data_layer_classes():
     from simcore.radiometry import analytic
-    from simcore.render import irradiance
     import simcore.render as render_pkg
-    assert irradiance.DiodeSurfaces is DiodeSurfaces is render_pkg.DiodeSurfaces
+    assert render_pkg.DiodeSurfaces is DiodeSurfaces
     assert analytic.BodyBox is BodyBox
 
 
