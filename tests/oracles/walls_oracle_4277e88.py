@@ -17,7 +17,7 @@ Cases (materials are the Mitsuba BSDF dicts the old tracer used, two-sided):
 * ``series rho <rho>``: Lambertian walls and floor (section 3), wall axis, no Russian roulette.
 * ``albedo table``: A.wall_albedo_effect rows (one orbit at 60 s, tilt25_fov75, diode 0 dead), the
   table traced in 16 independent batches (seeds 0..15); ``*_se`` their standard deviation / 4.
-* ``fov70 <material> black floor``: tests/test_reflected.py's well (WellAperture.design(70.0)), black
+* ``fov70 <material> black floor``: tests/render/test_reflected.py's well (WellAperture.design(70.0)), black
   floor, four directions ``d_diode`` (diode frame).
 """
 

@@ -31,7 +31,7 @@ from simcore.render.irradiance import DiodeSurfaces, Renderer
 from simcore.shapes.window import Window, WindowedWell
 from simcore.studies.response import traced_response
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "scenes" / "examples" / "coverglass_diode.toml"
+EXAMPLE = Path(__file__).resolve().parents[2] / "scenes" / "examples" / "coverglass_diode.toml"
 SIDE_M = np.sqrt(7.02e-6)                     # BPW34 sensitive area 7.02 mm^2 (SPEC sec. 4)
 FLOAT_REL = 1e-6
 
@@ -297,9 +297,9 @@ def test_overlapping_windows_are_a_one_line_error(tmp_path, capsys):
 
 def test_a_diode_on_a_part_takes_a_window_and_reads_the_slab(tmp_path):
     # issue 13's diodes on parts: a bare diode on the deployed +y wing of the 3U example (its surface looks up,
-    # +z; tests/test_parts.py computes the placement by hand), under the example's window: its traced response
+    # +z; tests/scenes/test_config_parts.py computes the placement by hand), under the example's window: its traced response
     # at normal incidence is the slab's (1 - R) / (1 + R), R = 0.04 for n = 1.5 (issue 14's T at 0 deg)
-    ex = Path(__file__).resolve().parents[1] / "scenes" / "examples" / "cubesat3u_panels.toml"
+    ex = Path(__file__).resolve().parents[2] / "scenes" / "examples" / "cubesat3u_panels.toml"
     path = tmp_path / "w.toml"
     path.write_text(ex.read_text() + '[[diode]]\nname = "wing top"\npart = "wing_+y"\nat_mm = [10.0, 1.0, 100.0]\n'
                     'normal = [0.0, 1.0, 0.0]\nfov_deg = 90\n'
@@ -365,7 +365,7 @@ def test_view_outlines_the_window_where_the_camera_sees_it(tmp_path):
 # ---- reflected light through the window -------------------------------------------------------------------------
 @pytest.mark.parametrize("window, agrees", [(True, True), (False, False)])
 def test_sun_seen_in_a_mirror_through_the_window(window, agrees):
-    # The mirror geometry of tests/test_reflected.py: a 10 mm diode facing +z at the origin, a perfect mirror
+    # The mirror geometry of tests/render/test_reflected.py: a 10 mm diode facing +z at the origin, a perfect mirror
     # plate x = 0.05 m facing it (y in [-1, 1] m, z in [0, 1] m), the Sun at s = (-0.6, 0, 0.8): the diode sees
     # the Sun's image along s' = (0.6, 0, 0.8), 36.87 deg from its normal, reflected = E cos(n, s') = 0.8 E (a
     # uniform disc wholly above the horizon). Under a 60 x 60 mm window (n 1.5, 1 mm, 0.5 mm above the diode)

@@ -158,7 +158,7 @@ def test_reflected_grows_with_reflectance():
 def _nadir_plate_quadrature(h_m, rho, e_sun):
     """Irradiance (W/m^2) on a plate facing nadir at altitude h above a uniform Lambertian Earth of
     reflectance rho with the Sun at the zenith: 2 rho E R^2 int mu (H mu - R)(H - R mu) / d^4 dmu over the
-    visible cap (tests/test_render.py's oracle, quoted there as 329.57 W/m^2 for 700 km, rho 0.3)."""
+    visible cap (tests/render/test_renderer.py's oracle, quoted there as 329.57 W/m^2 for 700 km, rho 0.3)."""
     Hh = R + h_m
     f = lambda mu: mu * (Hh * mu - R) * (Hh - R * mu) / (R * R + Hh * Hh - 2 * R * Hh * mu) ** 2  # noqa: E731
     val, _ = quad(f, R / Hh, 1.0, epsabs=0, epsrel=1e-12)
@@ -188,7 +188,7 @@ def test_earth_seen_in_a_mirror_above_an_upward_diode(gap, oracle_gap, agrees):
 def test_furnace_lossless_plate_in_a_uniform_radiance_field(rho, agrees):
     # "Lossless surfaces in a uniform radiance field give pi L": 100 m above a uniform white Earth (rho 1)
     # with the Sun at the zenith, the Earth's radiance is L = E / pi to 1.6e-5 over the visible cap (see
-    # tests/test_render.py). A white Lambertian plate (rho 1, lossless) 1 mm above an upward diode, facing the
+    # tests/render/test_renderer.py). A white Lambertian plate (rho 1, lossless) 1 mm above an upward diode, facing the
     # Earth, receives pi L sin^2(cap half-angle) and sends rho/pi of it back down: the diode reads
     # pi L sin^2(cap) F = E (R / (R + h))^2 F, F the plate's view factor (Howell B-3). Negative case: a plate
     # that loses 3 % (the oracle still says lossless) is rejected.
@@ -413,11 +413,11 @@ def test_rough_conductor_plate_matches_microfacet_quadrature(alpha, oracle_alpha
 ])
 def test_well_walls_agree_with_the_source_side_wall_tracer(reference, agrees):
     # Another implementation: the retired simcore/render/walls.py (commit 4277e88; its numbers recorded in
-    # tests/walls_oracle_4277e88.py) traced the same well (FOV 70, eq. 4.15 design) from the opening toward the
+    # tests/oracles/walls_oracle_4277e88.py) traced the same well (FOV 70, eq. 4.15 design) from the opening toward the
     # diode (the adjoint direction) with its own sampling; walls of bare aluminium (GGX alpha 0.1, Mitsuba's
     # "Al"), black floor. Its `reflected` response to a unit collimated beam is what the path tracer reads
     # with E = 1 (its 0.27 deg disc blurs a response that varies over degrees).
-    from walls_oracle_4277e88 import ORACLE
+    from tests.oracles.walls_oracle_4277e88 import ORACLE
     from simcore.shapes.aperture import WellAperture
     ap = WellAperture.design(70.0)
     ref = ORACLE[reference]

@@ -159,7 +159,7 @@ def _round_well_mesh(frame, centre, radius, height, n=720):
 
 def test_round_well_lit_fraction_matches_the_closed_form_disc_overlap():
     # Oracle: simcore.shapes.aperture.CircularWell.lit_fraction, the closed-form overlap of the square diode
-    # with the rim's circle shifted by h tan (itself checked against quadrature in tests/test_aperture.py).
+    # with the rim's circle shifted by h tan (itself checked against quadrature in tests/shapes/test_aperture.py).
     # Traced plainly (no analytic hint: the renderer knows only the mesh).
     well = CircularWell(A, A, 2.2e-3, 1.5e-3)
     frame = diode_frame(np.array([0.0, 0.6, 0.8]))
@@ -480,7 +480,7 @@ def test_a_ray_grazing_an_edge_reads_the_same_whatever_rays_share_its_packet():
     from pathlib import Path
     from scenes.config import SatelliteConfig
     from scenes.meshes import build_satellite_mesh
-    bench = runpy.run_path(str(Path(__file__).resolve().parents[1] / "benchmarks" / "bench_render.py"))
+    bench = runpy.run_path(str(Path(__file__).resolve().parents[2] / "benchmarks" / "bench_render.py"))
     sun, earth, rot = bench["synthetic_orbit"](1536, 1.0)
     cfg = SatelliteConfig.load("tilt20_fov70")
     rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg))
