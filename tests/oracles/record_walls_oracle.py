@@ -5,7 +5,7 @@ commit 4277e88 from git (``git archive`` into a temporary folder), traces the or
 subprocess (this same file with ``--trace``, the recording code of commit 0894aa2, which imports only that old
 tree), and writes the data module from the JSON it returns. Run from a git checkout, any branch:
 
-    .venv/bin/python tests/oracles/record_walls_oracle.py OUTDIR                      # every case (hours on 2 cores)
+    .venv/bin/python tests/oracles/record_walls_oracle.py OUTDIR                      # every case (~11 min, 2 cores)
     .venv/bin/python tests/oracles/record_walls_oracle.py OUTDIR --cases fov70        # cases whose name has "fov70"
     .venv/bin/python tests/oracles/record_walls_oracle.py OUTDIR --reformat           # no tracing: the stored file
 
