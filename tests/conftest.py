@@ -1,5 +1,23 @@
+"""Fixtures shared by every test folder: a seeded generator, the bad-configuration check, and the render
+variants the renderer tests run on (``variant``)."""
+import functools
+
 import numpy as np
 import pytest
+
+
+@functools.cache
+def render_variants():
+    """Return the Mitsuba variants the renderer tests run on: llvm_ad_mono always, and cuda_ad_mono as well where
+    ``choose_variant`` picks it (Dr.Jit has a working CUDA device). Decided once, at collection."""
+    from simcore.render.irradiance import choose_variant
+    return ("llvm_ad_mono",) + (("cuda_ad_mono",) if choose_variant() == "cuda_ad_mono" else ())
+
+
+def pytest_generate_tests(metafunc):
+    """A test that takes ``variant`` runs once per render variant this machine has (no GPU: once, on the CPU)."""
+    if "variant" in metafunc.fixturenames:
+        metafunc.parametrize("variant", render_variants())
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ Sun of 1366.1 W/m^2 (``--solar-flux thesis``), the settings of thesis sec. 4.3 /
   configuration (SPEC sec. 7, thesis sec. 4.3 and chapter 5).
 
 About 6 min of rendering and 1 min of checking and evaluation on two busy CPU cores (measured: 6-7 min
-for the three tests, `pytest tests/test_slow_day.py -m slow`).
+for the three tests, `pytest tests/system/test_slow_day.py -m slow`).
 """
 import json
 

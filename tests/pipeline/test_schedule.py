@@ -13,7 +13,7 @@ from simcore.pipeline import run as R
 from simcore.pipeline.options import RunOptions
 from simcore.pipeline.run import PreparedRun, execute
 
-START = "2016-07-02T00:45:00Z"            # sunlit (tests/test_run.py's SMALL)
+START = "2016-07-02T00:45:00Z"            # sunlit (tests/system/test_run.py's SMALL)
 FAST = dict(rel_se_direct=None, rel_se_albedo=None, direct_samples=256, albedo_samples=256, seed=5)
 ARRAYS = ("irradiance", "irradiance_se", "irradiance_dof", "samples", "analytic", "analytic_reference",
           "direct_plain", "sun_dir_body", "q_gcrs_from_body", "valid", "sun_normal_irradiance")

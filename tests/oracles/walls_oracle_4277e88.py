@@ -1,13 +1,13 @@
 """The retired wall tracer's numbers: the independent oracle of the aperture study's wall reflections.
 
-Recorded by tests/walls_oracle_record.py (removed with the tracer; in git at commit 0894aa2) with
-simcore/render/walls.py at commit 4277e88 (Mitsuba variant llvm_ad_mono, 2 CPU cores), before that separate
-tracer was removed for the renderer's path tracer (simcore.studies.aperture.wall_response). It followed rays
-from uniform points on the well's opening along the beam through BSDF-sampled wall and floor reflections to
-the diode (the adjoint of the path tracer, which starts on the diode), with its own random numbers (PCG32),
-Russian roulette and estimator. Each case names its rays per direction and seed ("provenance"); values are
-the response to a unit collimated beam (a bare diode facing it reads 1) with standard errors (the sample
-standard deviation over the rays / sqrt(rays)).
+Recorded by tests/oracles/record_walls_oracle.py (the recorder of commit 0894aa2, restored: it traces in a copy
+of the tree at commit 4277e88) with simcore/render/walls.py at commit 4277e88 (Mitsuba variant llvm_ad_mono, 2 CPU
+cores), before that separate tracer was removed for the renderer's path tracer
+(simcore.studies.aperture.wall_response). It followed rays from uniform points on the well's opening along the
+beam through BSDF-sampled wall and floor reflections to the diode (the adjoint of the path tracer, which starts on
+the diode), with its own random numbers (PCG32), Russian roulette and estimator. Each case names its rays per
+direction and seed ("provenance"); values are the response to a unit collimated beam (a bare diode facing it
+reads 1) with standard errors (the sample standard deviation over the rays / sqrt(rays)).
 
 Cases (materials are the Mitsuba BSDF dicts the old tracer used, two-sided):
 
@@ -17,7 +17,7 @@ Cases (materials are the Mitsuba BSDF dicts the old tracer used, two-sided):
 * ``series rho <rho>``: Lambertian walls and floor (section 3), wall axis, no Russian roulette.
 * ``albedo table``: A.wall_albedo_effect rows (one orbit at 60 s, tilt25_fov75, diode 0 dead), the
   table traced in 16 independent batches (seeds 0..15); ``*_se`` their standard deviation / 4.
-* ``fov70 <material> black floor``: tests/test_reflected.py's well (WellAperture.design(70.0)), black
+* ``fov70 <material> black floor``: tests/render/test_reflected.py's well (WellAperture.design(70.0)), black
   floor, four directions ``d_diode`` (diode frame).
 """
 

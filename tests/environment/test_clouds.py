@@ -179,7 +179,7 @@ def _listing(folder):
 
 
 def test_a_cloudy_run_passes_its_analytic_check_and_records_the_weather(tmp_path):
-    # 00:45Z-00:50Z of the default day: sunlit (the default start is in eclipse; cf. tests/test_user_errors.py)
+    # 00:45Z-00:50Z of the default day: sunlit (the default start is in eclipse; cf. tests/system/test_user_errors.py)
     r = _sunsim(["run", "--map", "ceres2018-all", "--clouds", "1", "--duration", "300",
                  "--start", "2016-07-02T00:45:00Z", "-o", "c.nc"], tmp_path)
     assert r.returncode == 0, r.stderr

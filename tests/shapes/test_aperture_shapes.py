@@ -10,7 +10,7 @@ from simcore.pipeline.run import PreparedRun
 from simcore.render import DiodeSurfaces, Renderer
 from simcore.shapes.aperture import WellAperture
 from simcore.studies import aperture as A
-from walls_oracle_4277e88 import ORACLE
+from tests.oracles.walls_oracle_4277e88 import ORACLE
 
 AP75 = WellAperture.design(75.0)   # the well of tilt25_fov75 (FOV 75: opening 7.00 mm), the old tracer's cases
 
@@ -52,7 +52,7 @@ def test_plugs_are_black_and_change_no_all_black_render():
 
 
 def test_the_satellite_mesh_reproduces_the_old_wall_tracer_thanks_to_its_plug():
-    # Oracle: the retired wall tracer's numbers (tests/walls_oracle_4277e88.py, simcore/render/walls.py at
+    # Oracle: the retired wall tracer's numbers (tests/oracles/walls_oracle_4277e88.py, simcore/render/walls.py at
     # 4277e88), which end every path that reaches the diode. The satellite mesh (body, ramp, floor, well, plug)
     # of the one-diode configuration, traced as `sunsim run` traces it, must agree on average: the mean of the
     # n = 80 z-scores within 4 / sqrt(n) (false-alarm rate 6e-5 per case). Without the plug, reflected paths
@@ -260,7 +260,7 @@ def test_round_well_configuration_and_mesh():
 def test_traced_round_hole_is_the_closed_form_disc_overlap():
     # Issue 14's acceptance line: a circular hole over a diode, traced (the configuration's 1024-gon tube, plain
     # sampling of the diode: the renderer knows only the mesh) = the closed-form overlap of the diode with the
-    # shifted circle (CircularWell, itself checked against quadrature in tests/test_aperture.py) within 3 SE at
+    # shifted circle (CircularWell, itself checked against quadrature in tests/shapes/test_aperture.py) within 3 SE at
     # each partly lit direction (false-alarm rate 0.27 % each, fixed seed); a hole 3 % wider is far off.
     from simcore.shapes.aperture import CircularWell
     cw = _round_cfg(ROUND).diodes[0].aperture
@@ -328,7 +328,7 @@ def test_round_wells_example_runs_and_passes_the_check(tmp_path):
     # The check's tests each have a false-alarm rate of 1e-3 (simcore.pipeline.check); fixed seed.
     from pathlib import Path
     from simcore.cli import main
-    example = Path(__file__).resolve().parents[1] / "scenes" / "examples" / "round_wells.toml"
+    example = Path(__file__).resolve().parents[2] / "scenes" / "examples" / "round_wells.toml"
     out = tmp_path / "round.nc"
     assert main(["run", "--config", str(example), "--start", "2016-03-20T12:00:00", "--duration", "600",
                  "-o", str(out)]) == 0

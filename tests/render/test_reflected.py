@@ -69,9 +69,10 @@ SUN = np.array([-0.6, 0.0, 0.8])
 IMAGE = SUN * [-1, 1, 1]
 
 
-def _mirror_case(z_lo, material):
+def _mirror_case(z_lo, material, variant):
     v = [[X0, -1.0, z_lo], [X0, -1.0, 1.0], [X0, 1.0, 1.0], [X0, 1.0, z_lo]]
-    rend = Renderer(_diode(SIDE), _quad(v, material), e_sun_w_m2=E, sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD)
+    rend = Renderer(_diode(SIDE), _quad(v, material), e_sun_w_m2=E, sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD,
+                    variant=variant)
     return rend.render(SUN[None], seed=21, reflected_samples=4096)
 
 
@@ -86,8 +87,8 @@ def _lit_share(z_lo):
     (X0 * IMAGE[2] / IMAGE[0] + 0.002, X0 * IMAGE[2] / IMAGE[0] + 0.002, True),  # a quarter-ish share
     (X0 * IMAGE[2] / IMAGE[0], 0.0, False),             # negative: the oracle with the wrong mirror edge
 ])
-def test_perfect_mirror_reflects_the_suns_image(z_lo, oracle_z_lo, agrees):
-    res = _mirror_case(z_lo, "mirror")
+def test_perfect_mirror_reflects_the_suns_image(z_lo, oracle_z_lo, agrees, variant):
+    res = _mirror_case(z_lo, "mirror", variant=variant)
     expected = E * IMAGE[2] * _lit_share(oracle_z_lo)   # cos(n, s') = s'_z for n = +z
     assert 0.0 < _lit_share(z_lo) <= 1.0
     z = _z(res, expected)
@@ -101,9 +102,9 @@ def test_perfect_mirror_reflects_the_suns_image(z_lo, oracle_z_lo, agrees):
     (1.2, 7.0, 7.0, True),
     (1.2, 7.0, 4.0, False),                             # negative: the oracle with the wrong extinction index
 ])
-def test_smooth_conductor_reflects_its_fresnel_share(eta, k, oracle_k, agrees):
+def test_smooth_conductor_reflects_its_fresnel_share(eta, k, oracle_k, agrees, variant):
     mat = {"type": "conductor", "eta": {"type": "uniform", "value": eta}, "k": {"type": "uniform", "value": k}}
-    res = _mirror_case(0.0, mat)
+    res = _mirror_case(0.0, mat, variant=variant)
     cos_i = -SUN[0]                                     # angle between the Sun and the mirror's normal (-x)
     expected = E * IMAGE[2] * fresnel_conductor(cos_i, eta, oracle_k)
     z = _z(res, expected)
@@ -119,10 +120,10 @@ H, HA, HB = 0.05, 0.04, 0.03
 SUN_BELOW = np.array([0.3, 0.0, -0.95]) / np.linalg.norm([0.3, 0.0, -0.95])
 
 
-def _plate_case(rho):
+def _plate_case(rho, variant):
     v = [[-HA, -HB, H], [HA, -HB, H], [HA, HB, H], [-HA, HB, H]]
     mat = {"type": "diffuse", "reflectance": {"type": "uniform", "value": rho}}
-    rend = Renderer(_diode(0.001), _quad(v, mat), e_sun_w_m2=E)
+    rend = Renderer(_diode(0.001), _quad(v, mat), e_sun_w_m2=E, variant=variant)
     return rend.render(SUN_BELOW[None], seed=5 + int(round(100 * rho)), reflected_samples=16384)   # independent per rho
 
 
@@ -140,15 +141,15 @@ def test_view_factor_formula_against_direct_integration():
     (0.1, 0.1, True), (0.3, 0.3, True), (0.6, 0.6, True),
     (0.3, 0.33, False),                                 # negative: the oracle 10 % off in reflectance
 ])
-def test_diffuse_plate_reflects_rho_e_cos_times_view_factor(rho, oracle_rho, agrees):
-    res = _plate_case(rho)
+def test_diffuse_plate_reflects_rho_e_cos_times_view_factor(rho, oracle_rho, agrees, variant):
+    res = _plate_case(rho, variant=variant)
     z = _z(res, _plate_oracle(oracle_rho))
     assert (abs(z) < Z_MAX) == agrees, (res.reflected_w_m2, res.reflected_se_w_m2, _plate_oracle(oracle_rho), z)
     assert res.direct_w_m2[0, 0] == 0.0                 # the Sun is below the diode's horizon
 
 
-def test_reflected_grows_with_reflectance():
-    vals = [_plate_case(rho) for rho in (0.1, 0.3, 0.6)]
+def test_reflected_grows_with_reflectance(variant):
+    vals = [_plate_case(rho, variant=variant) for rho in (0.1, 0.3, 0.6)]
     for lo, hi in zip(vals[:-1], vals[1:]):
         diff = hi.reflected_w_m2[0, 0] - lo.reflected_w_m2[0, 0]
         se = np.hypot(hi.reflected_se_w_m2[0, 0], lo.reflected_se_w_m2[0, 0])
@@ -158,7 +159,7 @@ def test_reflected_grows_with_reflectance():
 def _nadir_plate_quadrature(h_m, rho, e_sun):
     """Irradiance (W/m^2) on a plate facing nadir at altitude h above a uniform Lambertian Earth of
     reflectance rho with the Sun at the zenith: 2 rho E R^2 int mu (H mu - R)(H - R mu) / d^4 dmu over the
-    visible cap (tests/test_render.py's oracle, quoted there as 329.57 W/m^2 for 700 km, rho 0.3)."""
+    visible cap (tests/render/test_renderer.py's oracle, quoted there as 329.57 W/m^2 for 700 km, rho 0.3)."""
     Hh = R + h_m
     f = lambda mu: mu * (Hh * mu - R) * (Hh - R * mu) / (R * R + Hh * Hh - 2 * R * Hh * mu) ** 2  # noqa: E731
     val, _ = quad(f, R / Hh, 1.0, epsabs=0, epsrel=1e-12)
@@ -169,14 +170,15 @@ def _nadir_plate_quadrature(h_m, rho, e_sun):
     (0.02, 0.02, True),
     (0.02, 200e3, False),                               # negative: an Earth image 400 km farther off
 ])
-def test_earth_seen_in_a_mirror_above_an_upward_diode(gap, oracle_gap, agrees):
+def test_earth_seen_in_a_mirror_above_an_upward_diode(gap, oracle_gap, agrees, variant):
     # A diode facing away from the Earth (zenith) under a 20 x 20 m perfect mirror `gap` above it, the Sun at
     # the zenith (full phase below): the diode sees the Earth's mirror image, an Earth 2 gap farther away,
     # so it reads what a nadir plate reads at altitude h + 2 gap (the quadrature above), reached only
     # through the Earth term of the path tracer.
     h = 700e3
     v = [[-10.0, -10.0, gap], [10.0, -10.0, gap], [10.0, 10.0, gap], [-10.0, 10.0, gap]]
-    rend = Renderer(_diode(0.002), _quad(v, "mirror"), reflectivity=np.full((180, 288), 0.3), e_sun_w_m2=E)
+    rend = Renderer(_diode(0.002), _quad(v, "mirror"), reflectivity=np.full((180, 288), 0.3), e_sun_w_m2=E,
+                    variant=variant)
     res = rend.render([[0.0, 0.0, 1.0]], [[0.0, 0.0, -(R + h)]], np.eye(3)[None], seed=3, reflected_samples=4096)
     expected = _nadir_plate_quadrature(h + 2 * oracle_gap, 0.3, E)
     z = _z(res, expected)
@@ -185,17 +187,17 @@ def test_earth_seen_in_a_mirror_above_an_upward_diode(gap, oracle_gap, agrees):
 
 
 @pytest.mark.parametrize("rho, agrees", [(1.0, True), (0.97, False)])
-def test_furnace_lossless_plate_in_a_uniform_radiance_field(rho, agrees):
+def test_furnace_lossless_plate_in_a_uniform_radiance_field(rho, agrees, variant):
     # "Lossless surfaces in a uniform radiance field give pi L": 100 m above a uniform white Earth (rho 1)
     # with the Sun at the zenith, the Earth's radiance is L = E / pi to 1.6e-5 over the visible cap (see
-    # tests/test_render.py). A white Lambertian plate (rho 1, lossless) 1 mm above an upward diode, facing the
+    # tests/render/test_renderer.py). A white Lambertian plate (rho 1, lossless) 1 mm above an upward diode, facing the
     # Earth, receives pi L sin^2(cap half-angle) and sends rho/pi of it back down: the diode reads
     # pi L sin^2(cap) F = E (R / (R + h))^2 F, F the plate's view factor (Howell B-3). Negative case: a plate
     # that loses 3 % (the oracle still says lossless) is rejected.
     h, gap, half = 100.0, 0.001, 0.5
     v = [[-half, -half, gap], [half, -half, gap], [half, half, gap], [-half, half, gap]]
     mat = {"type": "diffuse", "reflectance": {"type": "uniform", "value": rho}}
-    rend = Renderer(_diode(0.0005), _quad(v, mat), reflectivity=np.ones((180, 288)), e_sun_w_m2=E)
+    rend = Renderer(_diode(0.0005), _quad(v, mat), reflectivity=np.ones((180, 288)), e_sun_w_m2=E, variant=variant)
     res = rend.render([[0.0, 0.0, 1.0]], [[0.0, 0.0, -(R + h)]], np.eye(3)[None], seed=4,
                       reflected_samples=4096)
     F = 4 * plate_corner_view_factor(half, half, gap)
@@ -205,7 +207,7 @@ def test_furnace_lossless_plate_in_a_uniform_radiance_field(rho, agrees):
 
 
 # ------------------------------------------------------------------------------------------ all black
-def test_all_black_configuration_has_no_reflected_and_unchanged_direct_albedo():
+def test_all_black_configuration_has_no_reflected_and_unchanged_direct_albedo(variant):
     cfg = SatelliteConfig.load("tilt20_fov70")
     mesh = build_satellite_mesh(cfg)
     plain = trimesh.Trimesh(mesh.vertices.copy(), mesh.faces.copy(), process=False)   # no materials at all
@@ -217,8 +219,8 @@ def test_all_black_configuration_has_no_reflected_and_unchanged_direct_albedo():
     earth *= (R + 600e3) / np.linalg.norm(earth, axis=1, keepdims=True)
     rot = np.tile(np.eye(3), (6, 1, 1))
     kw = dict(seed=7, direct_samples=256, albedo_samples=128)
-    a = Renderer(ds, mesh).render(sun, earth, rot, **kw)
-    b = Renderer(ds, plain).render(sun, earth, rot, **kw)
+    a = Renderer(ds, mesh, variant=variant).render(sun, earth, rot, **kw)
+    b = Renderer(ds, plain, variant=variant).render(sun, earth, rot, **kw)
     assert np.all(a.reflected_w_m2 == 0) and np.all(a.reflected_se_w_m2 == 0) and a.reflected_samples.sum() == 0
     assert np.array_equal(a.direct_w_m2, b.direct_w_m2) and np.array_equal(a.albedo_w_m2, b.albedo_w_m2)
     np.testing.assert_array_equal(a.total_w_m2, a.direct_w_m2 + a.albedo_w_m2)
@@ -228,7 +230,7 @@ def test_all_black_configuration_has_no_reflected_and_unchanged_direct_albedo():
                                                                      "fov_deg": 70},
                                                           "body": {"material": "aluminium"},
                                                           "mount": {"material": "aluminium"}}))
-    rend = Renderer(ds, alu, max_depth=4)
+    rend = Renderer(ds, alu, max_depth=4, variant=variant)
     c = rend.render(sun, earth, rot, reflected_samples=64, **kw)
     d = rend.render(sun, earth, rot, reflected_samples=64, batch_epochs=2, **kw)
     assert np.array_equal(a.direct_w_m2, c.direct_w_m2) and np.array_equal(a.albedo_w_m2, c.albedo_w_m2)
@@ -237,14 +239,14 @@ def test_all_black_configuration_has_no_reflected_and_unchanged_direct_albedo():
     np.testing.assert_array_equal(c.total_w_m2, c.direct_w_m2 + c.albedo_w_m2 + c.reflected_w_m2)
 
 
-def test_bad_reflected_arguments():
-    rend = Renderer(_diode(0.001), _quad([[-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], "mirror"))
+def test_bad_reflected_arguments(variant):
+    rend = Renderer(_diode(0.001), _quad([[-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], "mirror"), variant=variant)
     with pytest.raises(ValueError, match="reflected_samples must be 4 m"):
         rend.render([[0.0, 0.0, 1.0]], reflected_samples=90)
     with pytest.raises(ValueError, match="max_depth"):
-        Renderer(_diode(0.001), max_depth=0)
+        Renderer(_diode(0.001), max_depth=0, variant=variant)
     with pytest.raises(ValueError, match="unknown material 'chrome'"):
-        Renderer(_diode(0.001), _quad([[-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], "chrome"))
+        Renderer(_diode(0.001), _quad([[-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], "chrome"), variant=variant)
 
 
 # ------------------------------------------------------------------------------------------ many bounces
@@ -272,14 +274,14 @@ def _sphere_oracle(rho, depth):
     (0.8, 40, 0.8, 2, False),          # negative: the oracle stops too early
     (0.5, 40, 0.45, 40, False),        # negative: the oracle's reflectance 10 % low
 ])
-def test_integrating_sphere(rho, depth, oracle_rho, oracle_depth, agrees):
+def test_integrating_sphere(rho, depth, oracle_rho, oracle_depth, agrees, variant):
     sph = trimesh.creation.icosphere(subdivisions=5, radius=RS)
     c = sph.triangles_center
     m = trimesh.Trimesh(sph.vertices, sph.faces[c[:, 2] / np.linalg.norm(c, axis=1) < np.cos(PORT)], process=False)
     m.metadata["material"] = {"type": "diffuse", "reflectance": {"type": "uniform", "value": rho}}
     frame = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])      # n = -x: into the sphere
     ds = DiodeSurfaces(np.array([[RS - 2e-4, 0.0, 0.0]]), frame[None], [[0.002, 0.002]])
-    res = Renderer(ds, m, e_sun_w_m2=E, max_depth=depth).render([[0.0, 0.0, 1.0]], seed=2,
+    res = Renderer(ds, m, e_sun_w_m2=E, max_depth=depth, variant=variant).render([[0.0, 0.0, 1.0]], seed=2,
                                                                  reflected_samples=65536)
     expected = _sphere_oracle(oracle_rho, oracle_depth)
     z = _z(res, expected)
@@ -395,12 +397,13 @@ def _ggx_plate_oracle(alpha, eta, k, sun, a=0.04, b=0.03, h=0.05, n=(600, 450)):
     (0.2, 0.2, True),
     (0.2, 0.3, False),                                  # negative: the oracle with a rougher surface
 ])
-def test_rough_conductor_plate_matches_microfacet_quadrature(alpha, oracle_alpha, agrees):
+def test_rough_conductor_plate_matches_microfacet_quadrature(alpha, oracle_alpha, agrees, variant):
     sun = np.array([0.3, 0.0, -0.95]) / np.linalg.norm([0.3, 0.0, -0.95])
     v = [[-0.04, -0.03, 0.05], [0.04, -0.03, 0.05], [0.04, 0.03, 0.05], [-0.04, 0.03, 0.05]]
     mat = {"type": "roughconductor", "distribution": "ggx", "alpha": alpha,
            "eta": {"type": "uniform", "value": 1.2}, "k": {"type": "uniform", "value": 7.0}}
-    res = Renderer(_diode(0.001), _quad(v, mat), e_sun_w_m2=E).render(sun[None], seed=8, reflected_samples=16384)
+    res = Renderer(_diode(0.001), _quad(v, mat), e_sun_w_m2=E, variant=variant).render(sun[None], seed=8,
+                                                                                       reflected_samples=16384)
     expected = _ggx_plate_oracle(oracle_alpha, 1.2, 7.0, sun)
     z = _z(res, expected)
     assert (abs(z) < Z_MAX) == agrees, (res.reflected_w_m2, res.reflected_se_w_m2, expected, z)
@@ -411,13 +414,13 @@ def test_rough_conductor_plate_matches_microfacet_quadrature(alpha, oracle_alpha
     ("fov70 bare Al (alpha 0.1) black floor", True),
     ("fov70 diffuse rho 0.5 black floor", False),       # negative: the other tracer with other walls
 ])
-def test_well_walls_agree_with_the_source_side_wall_tracer(reference, agrees):
+def test_well_walls_agree_with_the_source_side_wall_tracer(reference, agrees, variant):
     # Another implementation: the retired simcore/render/walls.py (commit 4277e88; its numbers recorded in
-    # tests/walls_oracle_4277e88.py) traced the same well (FOV 70, eq. 4.15 design) from the opening toward the
+    # tests/oracles/walls_oracle_4277e88.py) traced the same well (FOV 70, eq. 4.15 design) from the opening toward the
     # diode (the adjoint direction) with its own sampling; walls of bare aluminium (GGX alpha 0.1, Mitsuba's
     # "Al"), black floor. Its `reflected` response to a unit collimated beam is what the path tracer reads
     # with E = 1 (its 0.27 deg disc blurs a response that varies over degrees).
-    from walls_oracle_4277e88 import ORACLE
+    from tests.oracles.walls_oracle_4277e88 import ORACLE
     from simcore.shapes.aperture import WellAperture
     ap = WellAperture.design(70.0)
     ref = ORACLE[reference]
@@ -432,6 +435,6 @@ def test_well_walls_agree_with_the_source_side_wall_tracer(reference, agrees):
     mesh.metadata["material"] = {"type": "roughconductor", "material": "Al", "alpha": 0.1, "distribution": "ggx"}
     ds = DiodeSurfaces(np.zeros((1, 3)), np.eye(3)[None], [[ap.diode_x_m, ap.diode_y_m]], (ap,))
     d = np.array(ref["d_diode"])
-    res = Renderer(ds, mesh, e_sun_w_m2=1.0).render(d, seed=1, reflected_samples=65536)
+    res = Renderer(ds, mesh, e_sun_w_m2=1.0, variant=variant).render(d, seed=1, reflected_samples=65536)
     z = (res.reflected_w_m2[:, 0] - ref["reflected"]) / np.hypot(res.reflected_se_w_m2[:, 0], ref["reflected_se"])
     assert bool(np.all(np.abs(z) < Z_MAX)) == agrees, z

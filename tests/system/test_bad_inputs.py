@@ -17,7 +17,7 @@ from simcore.cli import main
 
 START = ["--start", "2016-07-02T00:45:00Z"]
 TINY = START + ["--duration", "4", "--samples", "256", "256"]
-PANELS = os.path.join(os.path.dirname(__file__), "..", "scenes", "examples", "cubesat3u_panels.toml")
+PANELS = os.path.join(os.path.dirname(__file__), "..", "..", "scenes", "examples", "cubesat3u_panels.toml")
 TLE1 = "1 39161U 13021C   16209.16355149  .00000281  00000-0  53050-4 0  9997"
 TLE2 = "2 39161  98.0494 293.0813 0011107  99.1953 261.0497 14.71695995172946"
 
@@ -130,7 +130,7 @@ def _later_inputs(d):
         (d / name).mkdir()
         (d / name / "results.json").write_bytes(text)
     (d / "page_npz").mkdir()
-    shutil.copy(os.path.join(os.path.dirname(__file__), "..", "docs", "flight_opssat", "results.json"),
+    shutil.copy(os.path.join(os.path.dirname(__file__), "..", "..", "docs", "flight_opssat", "results.json"),
                 d / "page_npz" / "results.json")
     (d / "page_npz" / "samples.npz").write_bytes(b"PK\x03\x04 not really a zip")
 
@@ -201,7 +201,7 @@ def _refused(argv, words, runs, capsys, monkeypatch):
 RUN = ["run"] + TINY
 TIMES = ["run", "--samples", "256", "256", "--times"]
 FLIGHT = ["flight-check", "opssat"]
-_OPSSAT = os.path.join(os.path.dirname(__file__), "..", "simcore", "data", "flight", "opssat")
+_OPSSAT = os.path.join(os.path.dirname(__file__), "..", "..", "simcore", "data", "flight", "opssat")
 PD = os.path.join(_OPSSAT, "pd_theta_2020-11-15_to_21.csv")
 GRAINS = os.path.join(_OPSSAT, "attitude_2020-11-15_to_21.csv")
 BAD = [
@@ -461,7 +461,7 @@ BAD = [
     (RUN + ["--attitude", "RUNS/abs.csv", "--attitude-direction", "body2frame"], "did you mean 'body_to_frame'"),
     (RUN + ["--attitude-frame", "TEME"], "--attitude-frame TEME declares the convention of an --attitude file"),
     (RUN + ["--attitude-direction", "frame_to_body"], "--attitude-direction frame_to_body declares"),
-    # ---- run --eop, --orbit (issue 34; malformed OEMs: tests/test_ccsds_oem.py)
+    # ---- run --eop, --orbit (issue 34; malformed OEMs: tests/environment/test_ccsds_oem.py)
     *[(RUN + ["--eop"] + v.split(), "UT1 - UTC stays within 0.9 s and the pole within 1 arcsec")
       for v in ("nan 0 0", "0 inf 0", "5 0 0", "0.1 3 0", "0.1 0 -400")],
     (RUN + ["--eop", "0.1", "0"], "expected 3 arguments"),

@@ -168,7 +168,7 @@ def test_a_kernel_whose_lanes_are_all_constant_follows_the_launch_size():
     np.testing.assert_allclose(got.direct_w_m2[:, 0], E_SUN_W_M2 * np.cos(th), rtol=1e-6, atol=0)
 
 
-def test_a_constant_kernel_traced_at_every_launch_still_has_its_lanes(monkeypatch):
+def test_a_constant_kernel_traced_at_every_launch_still_has_its_lanes(monkeypatch, variant):
     # A variant that traces every launch (not in _FREEZE_VARIANTS; cuda_ad_mono) anchors the result on the lanes'
     # counter too: unanchored, the folded constant came back as one value for a launch's 1024 lanes (IndexError in
     # _task_mean_var, seen on an H100). Here the CPU variant is made to trace every launch. Oracle as above.
@@ -179,7 +179,7 @@ def test_a_constant_kernel_traced_at_every_launch_still_has_its_lanes(monkeypatc
     ds = DiodeSurfaces(np.zeros((1, 3)), diode_frame(np.array([0.0, 0.0, 1.0]))[None], [0.01, 0.01])
     th = np.radians(np.arange(0, 90))
     sun = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)
-    rend = Renderer(ds, variant=VARIANT)
+    rend = Renderer(ds, variant=variant)
     got = rend.render(sun, batch_epochs=64)
     assert rend._frozen == {}
     np.testing.assert_allclose(got.direct_w_m2[:, 0], E_SUN_W_M2 * np.cos(th), rtol=1e-6, atol=0)

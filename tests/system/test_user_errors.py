@@ -271,7 +271,7 @@ def test_a_crash_in_the_final_write_leaves_nothing_a_resume_does_not_clean(tmp_p
 # ---- item 4: a lock on the output ------------------------------------------------------------------------
 def test_a_second_process_on_the_same_output_is_refused_while_the_first_runs(tmp_path):
     # The first process is this test, holding the output the way a running 'sunsim run' does (a killed
-    # owner's lock vanishes with it: tests/test_run.py's resume after SIGKILL goes through the same lock).
+    # owner's lock vanishes with it: tests/system/test_run.py's resume after SIGKILL goes through the same lock).
     from simcore.cli import build_parser, run_options
     from simcore.pipeline.store import ChunkStore
     args = ["run"] + TINY + ["-o", "r.nc"]

@@ -31,7 +31,7 @@ from simcore.render import DiodeSurfaces, Renderer
 from simcore.shapes.window import Window, WindowedWell
 from simcore.studies.response import traced_response
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "scenes" / "examples" / "coverglass_diode.toml"
+EXAMPLE = Path(__file__).resolve().parents[2] / "scenes" / "examples" / "coverglass_diode.toml"
 SIDE_M = np.sqrt(7.02e-6)                     # BPW34 sensitive area 7.02 mm^2 (SPEC sec. 4)
 FLOAT_REL = 1e-6
 
@@ -213,7 +213,7 @@ def test_kernel_form_equals_the_closed_form_and_runs_in_the_albedo_kernel():
 
 
 # ---- 4. every configuration without a window renders exactly as before ---------------------------------------
-def test_without_windows_no_window_arrays_and_the_old_kernels(monkeypatch):
+def test_without_windows_no_window_arrays_and_the_old_kernels(monkeypatch, variant):
     cfg = SatelliteConfig.load("tilt20_fov70")
     ds = DiodeSurfaces.from_config(cfg)
     assert ds.windows is None and all(w is None for w in cfg.windows)
@@ -224,7 +224,7 @@ def test_without_windows_no_window_arrays_and_the_old_kernels(monkeypatch):
         raise AssertionError("a configuration without windows must not trace one")
 
     monkeypatch.setattr(Renderer, "_through_window", trap)
-    rend = Renderer(ds, reflectivity=np.full((180, 288), 0.3))
+    rend = Renderer(ds, reflectivity=np.full((180, 288), 0.3), variant=variant)
     assert rend._win is None
     sun = np.array([[0.6, 0.0, 0.8]])
     res = rend.render(sun, np.array([[0.0, 0.0, -7.0e6]]), np.eye(3)[None], direct_samples=64, albedo_samples=64)
@@ -233,15 +233,16 @@ def test_without_windows_no_window_arrays_and_the_old_kernels(monkeypatch):
     assert res.direct_w_m2.shape == (1, 14) and np.all(np.isfinite(res.albedo_w_m2))
 
 
-def test_a_windowed_diode_leaves_its_neighbours_unchanged():
+def test_a_windowed_diode_leaves_its_neighbours_unchanged(variant):
     # two bare diodes side by side; the window over the second one changes nothing of the first (same random
     # numbers, same rays: bitwise), and the second reads the slab's transmittance
     frames = np.tile(np.eye(3), (2, 1, 1))
     pos = np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0]])
     win = Window(1.5, 1e-3, 0.5e-3, (40e-3, 40e-3))
     sun = np.array([[np.sin(0.5), 0.0, np.cos(0.5)]])
-    plain = Renderer(DiodeSurfaces(pos, frames, [SIDE_M, SIDE_M])).render(sun, direct_samples=64)
-    mixed = Renderer(DiodeSurfaces(pos, frames, [SIDE_M, SIDE_M], windows=[None, win])).render(sun, direct_samples=64)
+    plain = Renderer(DiodeSurfaces(pos, frames, [SIDE_M, SIDE_M]), variant=variant).render(sun, direct_samples=64)
+    mixed = Renderer(DiodeSurfaces(pos, frames, [SIDE_M, SIDE_M], windows=[None, win]), variant=variant).render(
+        sun, direct_samples=64)
     assert mixed.direct_w_m2[0, 0] == plain.direct_w_m2[0, 0]
     e = 1366.1 * slab_response(0.5, 1.5, 1e-3, 0.5e-3, 20e-3)[0]
     assert mixed.direct_w_m2[0, 1] == pytest.approx(e, rel=FLOAT_REL)
@@ -297,9 +298,9 @@ def test_overlapping_windows_are_a_one_line_error(tmp_path, capsys):
 
 def test_a_diode_on_a_part_takes_a_window_and_reads_the_slab(tmp_path):
     # issue 13's diodes on parts: a bare diode on the deployed +y wing of the 3U example (its surface looks up,
-    # +z; tests/test_parts.py computes the placement by hand), under the example's window: its traced response
+    # +z; tests/scenes/test_config_parts.py computes the placement by hand), under the example's window: its traced response
     # at normal incidence is the slab's (1 - R) / (1 + R), R = 0.04 for n = 1.5 (issue 14's T at 0 deg)
-    ex = Path(__file__).resolve().parents[1] / "scenes" / "examples" / "cubesat3u_panels.toml"
+    ex = Path(__file__).resolve().parents[2] / "scenes" / "examples" / "cubesat3u_panels.toml"
     path = tmp_path / "w.toml"
     path.write_text(ex.read_text() + '[[diode]]\nname = "wing top"\npart = "wing_+y"\nat_mm = [10.0, 1.0, 100.0]\n'
                     'normal = [0.0, 1.0, 0.0]\nfov_deg = 90\n'
@@ -364,8 +365,8 @@ def test_view_outlines_the_window_where_the_camera_sees_it(tmp_path):
 
 # ---- reflected light through the window -------------------------------------------------------------------------
 @pytest.mark.parametrize("window, agrees", [(True, True), (False, False)])
-def test_sun_seen_in_a_mirror_through_the_window(window, agrees):
-    # The mirror geometry of tests/test_reflected.py: a 10 mm diode facing +z at the origin, a perfect mirror
+def test_sun_seen_in_a_mirror_through_the_window(window, agrees, variant):
+    # The mirror geometry of tests/render/test_reflected.py: a 10 mm diode facing +z at the origin, a perfect mirror
     # plate x = 0.05 m facing it (y in [-1, 1] m, z in [0, 1] m), the Sun at s = (-0.6, 0, 0.8): the diode sees
     # the Sun's image along s' = (0.6, 0, 0.8), 36.87 deg from its normal, reflected = E cos(n, s') = 0.8 E (a
     # uniform disc wholly above the horizon). Under a 60 x 60 mm window (n 1.5, 1 mm, 0.5 mm above the diode)
@@ -380,7 +381,7 @@ def test_sun_seen_in_a_mirror_through_the_window(window, agrees):
     plate = trimesh.Trimesh([[0.05, -1.0, 0.0], [0.05, -1.0, 1.0], [0.05, 1.0, 1.0], [0.05, 1.0, 0.0]],
                             [[0, 1, 2], [0, 2, 3]], process=False)
     plate.metadata["material"] = "mirror"
-    rend = Renderer(ds, plate, e_sun_w_m2=e_sun, sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD)
+    rend = Renderer(ds, plate, e_sun_w_m2=e_sun, sun_angular_radius_rad=SUN_ANGULAR_RADIUS_RAD, variant=variant)
     res = rend.render(np.array([[-0.6, 0.0, 0.8]]), seed=21, reflected_samples=4096)
     theta = np.arccos(0.8)
     # the finite window: its exit points stay > 20 mm inside its edges at 36.87 deg, so T is the infinite slab's
@@ -393,7 +394,7 @@ def test_sun_seen_in_a_mirror_through_the_window(window, agrees):
 
 
 # ---- the check's albedo reference where shadows cross a windowed diode ------------------------------------------
-def test_visible_share_under_a_window_traces_each_term_from_its_exit_point():
+def test_visible_share_under_a_window_traces_each_term_from_its_exit_point(variant):
     # A bare diode at the origin facing +z under a 20 x 20 mm window (n 1.5, 1 mm, 0.5 mm above it); a wall in the
     # plane x = 12 mm, 8 mm tall, 2 m long. Toward theta = 60 deg in the x-n plane the ray leaving the upper face
     # (height 1.5 mm) at x_e clears the wall when x_e < 12 mm - 6.5 mm tan(60 deg) = 0.742 mm; term k leaves at
@@ -405,7 +406,7 @@ def test_visible_share_under_a_window_traces_each_term_from_its_exit_point():
     wall.apply_translation([13e-3, 0.0, 4e-3])
     win = Window(1.5, 1e-3, 0.5e-3, (20e-3, 20e-3))
     ds = DiodeSurfaces(np.zeros((1, 3)), np.eye(3)[None], [[SIDE_M, SIDE_M]], windows=[win])
-    rend = Renderer(ds, wall)
+    rend = Renderer(ds, wall, variant=variant)
     th = np.radians(60.0)
     local = np.array([[np.sin(th), 0.0, np.cos(th)]])
     P = 400

@@ -1,12 +1,18 @@
 """Issue 4's acceptance, as a test: one full ESTCube-1 orbit (2016-07-02, 1 s, tilt20_fov70) rendered
-with seed 0 and checked against the independent analytic model on every diode-epoch."""
+with seed 0 and checked against the independent analytic model on every diode-epoch.
+
+Slow tier (~60 s): the same run-and-check path is covered in the default tier on a 10-minute span of the default
+study (tests/pipeline/test_check_power.py::test_the_untouched_run_passes: every check test passes, the hint-free
+direct estimate included) and through ``execute`` (tests/pipeline/test_evaluate_sunline.py, test_schedule.py)."""
 import numpy as np
+import pytest
 
 from simcore.pipeline.options import RunOptions
 from simcore.pipeline.run import execute
 from simcore.pipeline.runfile import check_run
 
 
+@pytest.mark.slow
 def test_one_full_orbit_passes_the_analytic_check(tmp_path):
     path, ds, _ = execute(RunOptions(output=str(tmp_path / "orbit.nc")), progress=False)
     assert ds.sizes["time"] == 5871 and ds.sizes["diode"] == 14      # one anomalistic period at 1 s

@@ -83,7 +83,7 @@ def test_aluminium_wells_add_reflected_light_to_the_response():
     # reflect sunlight onto a ramp diode once the Sun is off its normal (the walls facing it are then lit); the
     # direct part is the black layout's.
     from pathlib import Path
-    example = Path(__file__).resolve().parents[1] / "scenes" / "examples" / "tilt20_fov70_aluminium.toml"
+    example = Path(__file__).resolve().parents[2] / "scenes" / "examples" / "tilt20_fov70_aluminium.toml"
     (alu,) = traced_response(str(example), diodes=[3], plane="y", step_deg=10, samples=1024, reflected_samples=1024)
     (black,) = traced_response("tilt20_fov70", diodes=[3], plane="y", step_deg=10, samples=1024)
     np.testing.assert_allclose(alu.direct, black.direct, atol=1e-9)

@@ -6,7 +6,7 @@ from simcore.cli import main as cli_main
 from simcore.environment.geometry import one_orbit_geometry
 from simcore.studies import aperture as A
 from simcore.shapes.aperture import WellAperture
-from walls_oracle_4277e88 import ORACLE
+from tests.oracles.walls_oracle_4277e88 import ORACLE
 
 AP70 = WellAperture.design(70.0)   # FOV 70: opening 5.28 mm, height 0.48 mm (scenes/FORMAT.md)
 AP75 = WellAperture.design(75.0)   # the well of tilt25_fov75 (FOV 75: opening 7.00 mm), the old tracer's cases
@@ -91,7 +91,7 @@ def _oracle(case, theta):
     return np.array(c["response"])[i], np.array(c["response_se"])[i]
 
 
-# The reproduction of the retired tracer (tests/walls_oracle_4277e88.py: simcore/render/walls.py at commit 4277e88,
+# The reproduction of the retired tracer (tests/oracles/walls_oracle_4277e88.py: simcore/render/walls.py at commit 4277e88,
 # traced from the opening toward the diode, the adjoint of the path tracer's direction, with its own sampling).
 # Each compared value must lie within 3 combined standard errors, sqrt(se_new^2 + se_old^2): a two-sided
 # false-alarm rate of 0.27 % per value; the 12 + 6 values below give a correct tracer a family-wise

@@ -7,7 +7,7 @@ hold sunsim's own versions back). Run it in an environment that has Basilisk and
 
     python3 -m venv /tmp/bskenv && /tmp/bskenv/bin/pip install bsk
     PYTHONPATH=$PWD:/path/to/sunsim/venv/lib/python3.11/site-packages \\
-        /tmp/bskenv/bin/python -m pytest -m slow tests/test_export_basilisk.py -q -s
+        /tmp/bskenv/bin/python -m pytest -m slow tests/pipeline/test_export_basilisk.py -q -s
 """
 import numpy as np
 import pytest

@@ -88,7 +88,7 @@ def test_the_half_inside_share_is_the_volume_share(tmp_path):
 
 
 def test_the_shipped_scenes_stay_silent():
-    here = os.path.join(os.path.dirname(__file__), "..", "scenes", "examples")
+    here = os.path.join(os.path.dirname(__file__), "..", "..", "scenes", "examples")
     for path in sorted(glob.glob(os.path.join(here, "*.toml"))):
         SatelliteConfig.load(path)
     for name in list_configs():

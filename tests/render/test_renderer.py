@@ -104,10 +104,10 @@ def test_missing_libllvm_raises_llvm_not_found_in_a_subprocess():
 
 # ----------------------------------------------------------------------------- direct Sun
 
-def test_bare_diode_reads_e_sun_cos_theta_exactly():
+def test_bare_diode_reads_e_sun_cos_theta_exactly(variant):
     # Radiometric identity: a bare plate at incidence theta receives E_sun cos(theta).
     th = np.radians(np.arange(0, 90))
-    rend = Renderer(_bare())
+    rend = Renderer(_bare(), variant=variant)
     sun = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)
     res = rend.render(sun, sun_scale=np.linspace(0.97, 1.03, len(th)))
     expected = E_SUN_W_M2 * np.linspace(0.97, 1.03, len(th)) * np.cos(th)
@@ -119,7 +119,7 @@ def test_bare_diode_reads_e_sun_cos_theta_exactly():
     assert back.direct_w_m2[0, 0] == 0 and back.direct_samples[0, 0] == 0
 
 
-def test_square_well_lit_fraction_matches_analytic_overlap():
+def test_square_well_lit_fraction_matches_analytic_overlap(variant):
     # Oracle: simcore.shapes.aperture.WellAperture.lit_fraction, the closed-form overlap of the
     # diode with the opening shifted by h tan along each wall axis.
     # A rectangular well that shades partly from ~25 deg on (more partial cases than eq. 4.15's).
@@ -127,7 +127,7 @@ def test_square_well_lit_fraction_matches_analytic_overlap():
     frame = diode_frame(np.array([0.6, 0.0, 0.8]))
     centre = np.array([0.05, 0.01, 0.1])
     ds = DiodeSurfaces(centre[None], frame[None], [ap.diode_x_m, ap.diode_y_m])
-    rend = Renderer(ds, _well_mesh(frame, centre, ap))
+    rend = Renderer(ds, _well_mesh(frame, centre, ap), variant=variant)
     d_diode = _directions_in_diode_frame(30, 25.0, 65.0, seed=3)
     sun = d_diode @ frame                          # diode frame -> body frame
     res = rend.render(sun, seed=11, direct_samples=4096)
@@ -157,14 +157,15 @@ def _round_well_mesh(frame, centre, radius, height, n=720):
     return trimesh.Trimesh(np.array(verts), np.array(faces), process=False)
 
 
-def test_round_well_lit_fraction_matches_the_closed_form_disc_overlap():
+def test_round_well_lit_fraction_matches_the_closed_form_disc_overlap(variant):
     # Oracle: simcore.shapes.aperture.CircularWell.lit_fraction, the closed-form overlap of the square diode
-    # with the rim's circle shifted by h tan (itself checked against quadrature in tests/test_aperture.py).
+    # with the rim's circle shifted by h tan (itself checked against quadrature in tests/shapes/test_aperture.py).
     # Traced plainly (no analytic hint: the renderer knows only the mesh).
     well = CircularWell(A, A, 2.2e-3, 1.5e-3)
     frame = diode_frame(np.array([0.0, 0.6, 0.8]))
     centre = np.array([0.02, -0.03, 0.05])
-    rend = Renderer(DiodeSurfaces(centre[None], frame[None], [A, A]), _round_well_mesh(frame, centre, 2.2e-3, 1.5e-3))
+    rend = Renderer(DiodeSurfaces(centre[None], frame[None], [A, A]), _round_well_mesh(frame, centre, 2.2e-3, 1.5e-3),
+                    variant=variant)
     d_diode = _directions_in_diode_frame(30, 15.0, 60.0, seed=4)
     res = rend.render(d_diode @ frame, seed=17, direct_samples=4096)
     got = res.direct_w_m2[:, 0] / (E_SUN_W_M2 * d_diode[:, 2])
@@ -183,7 +184,7 @@ def test_round_well_lit_fraction_matches_the_closed_form_disc_overlap():
     assert np.median(np.abs((got[partial] - wrong[partial]) / se[partial])) > 5
 
 
-def test_mm_aperture_still_shadows_with_the_earth_7000_km_away():
+def test_mm_aperture_still_shadows_with_the_earth_7000_km_away(variant):
     # Float32 safety (satellite at the render origin): the same well, with the Earth's
     # centre 7000 km away, shadows as the closed-form overlap says, and the Earth still
     # eclipses the Sun exactly when the Sun is behind it.
@@ -191,7 +192,7 @@ def test_mm_aperture_still_shadows_with_the_earth_7000_km_away():
     frame = diode_frame(np.array([0.0, 0.0, 1.0]))
     centre = np.array([0.0, 0.05, 0.1135])
     ds = DiodeSurfaces(centre[None], frame[None], [A, A])
-    rend = Renderer(ds, _well_mesh(frame, centre, ap), reflectivity=np.zeros((180, 288)))
+    rend = Renderer(ds, _well_mesh(frame, centre, ap), reflectivity=np.zeros((180, 288)), variant=variant)
     d = _directions_in_diode_frame(20, 25.0, 65.0, seed=5)
     earth = np.tile([0.0, 0.0, -7.0e6], (len(d), 1))     # Earth below, the Sun above: no eclipse
     rot = np.tile(np.eye(3), (len(d), 1, 1))
@@ -218,7 +219,7 @@ def test_mm_aperture_still_shadows_with_the_earth_7000_km_away():
     np.testing.assert_allclose(res2.direct_w_m2[1, 0], E_SUN_W_M2, rtol=1e-7)
 
 
-def test_aperture_split_is_exact_for_the_analytic_well_and_unbiased_otherwise():
+def test_aperture_split_is_exact_for_the_analytic_well_and_unbiased_otherwise(variant):
     # With the diode's WellAperture given, samples go mostly where the analytic well lights
     # the diode (weighted by that area) and the rest check the remainder, all traced against
     # the mesh. Mesh = that well: the closed-form overlap comes out with ~zero error. A hint
@@ -233,7 +234,7 @@ def test_aperture_split_is_exact_for_the_analytic_well_and_unbiased_otherwise():
     partial = (lit > 0) & (lit < 1)
     for hint in (true, wrong):
         ds = DiodeSurfaces(centre[None], frame[None], [A, A], apertures=[hint])
-        res = Renderer(ds, mesh).render(d @ frame, seed=13)
+        res = Renderer(ds, mesh, variant=variant).render(d @ frame, seed=13)
         got = res.direct_w_m2[:, 0] / (E_SUN_W_M2 * d[:, 2])
         se = res.direct_se_w_m2[:, 0] / (E_SUN_W_M2 * d[:, 2])
         if hint is true:
@@ -246,7 +247,7 @@ def test_aperture_split_is_exact_for_the_analytic_well_and_unbiased_otherwise():
 
 
 @pytest.mark.parametrize("hint", [False, True])
-def test_shadow_of_a_plate_edge_matches_its_area(hint):
+def test_shadow_of_a_plate_edge_matches_its_area(hint, variant):
     # A body-like occluder that is not an aperture: an opaque plate 10 mm above a bare diode
     # whose edge (along v, at u = 0) hangs over the diode's centre line. A point (x, y) of the
     # diode sees the Sun iff x + H tan_u < 0, so the lit fraction is
@@ -258,7 +259,7 @@ def test_shadow_of_a_plate_edge_matches_its_area(hint):
     plate = np.array([[0.0, -0.025, H], [0.05, -0.025, H], [0.05, 0.025, H], [0.0, 0.025, H]]) + centre
     mesh = trimesh.Trimesh(plate, [[0, 1, 2], [0, 2, 3]], process=False)
     ds = DiodeSurfaces(centre[None], frame[None], [A, A], apertures=[WellAperture.bare()] if hint else None)
-    rend = Renderer(ds, mesh)
+    rend = Renderer(ds, mesh, variant=variant)
     tan_u = np.linspace(-0.12, 0.12, 25)
     tan_v = np.linspace(0.1, -0.1, 25)
     d = np.stack([tan_u, tan_v, np.ones_like(tan_u)], axis=1)
@@ -275,7 +276,7 @@ def test_shadow_of_a_plate_edge_matches_its_area(hint):
     assert np.all(got[lit == 0] == 0)
 
 
-def test_finite_solar_disc_gives_half_the_sun_at_the_limb():
+def test_finite_solar_disc_gives_half_the_sun_at_the_limb(variant):
     # Penumbra: a uniform solar disc centred on the Earth's limb is half hidden (the limb is
     # a straight edge to within (disc radius / limb radius) ~ 0.4 %); a disc wholly above
     # the limb gives the full E_sun on a plate facing its centre: the total solar irradiance is
@@ -285,7 +286,7 @@ def test_finite_solar_disc_gives_half_the_sun_at_the_limb():
     dist = R + 700e3
     limb = np.arcsin(R / dist)
     a = SUN_ANGULAR_RADIUS_RAD
-    rend = Renderer(_bare(), sun_angular_radius_rad=a, reflectivity=np.zeros((180, 288)))
+    rend = Renderer(_bare(), sun_angular_radius_rad=a, reflectivity=np.zeros((180, 288)), variant=variant)
     off = np.array([0.0, 3 * a, -3 * a])                   # Sun centre: on the limb, above, below
     ang = limb + off
     earth = dist * np.stack([np.sin(ang), np.zeros(3), np.cos(ang)], axis=1)
@@ -314,11 +315,11 @@ def _nadir_plate_quadrature(h_m, rho, e_sun):
     return 2 * rho * e_sun * R * R * val
 
 
-def test_albedo_nadir_plate_matches_quadrature():
+def test_albedo_nadir_plate_matches_quadrature(variant):
     # Oracle: the 1-D quadrature above (RENDERING_NOTES quotes 329.57 W/m^2 for 700 km, rho 0.3).
     expected = _nadir_plate_quadrature(700e3, 0.3, E_SUN_W_M2)
     assert abs(expected - 329.57) < 0.01
-    rend = Renderer(_bare((0.0, 0.0, -1.0)), reflectivity=np.full((180, 288), 0.3))
+    rend = Renderer(_bare((0.0, 0.0, -1.0)), reflectivity=np.full((180, 288), 0.3), variant=variant)
     n = 6
     res = rend.render(np.tile([0.0, 0.0, 1.0], (n, 1)), np.tile([0.0, 0.0, -(R + 700e3)], (n, 1)),
                       np.tile(np.eye(3), (n, 1, 1)), seed=1, albedo_samples=512)
@@ -329,13 +330,13 @@ def test_albedo_nadir_plate_matches_quadrature():
     assert np.all(res.direct_w_m2 == 0)                    # the Sun is behind a nadir plate
 
 
-def test_uniform_radiance_field_gives_pi_l():
+def test_uniform_radiance_field_gives_pi_l(variant):
     # Constant environment: 100 m above a uniform Lambertian Earth (rho = 1) with the Sun at
     # zenith, the radiance over the visible cap is E/pi to within 1 - cos(sqrt(2h/R)) = 1.6e-5,
     # and the cap's projected solid angle for a nadir plate is pi sin^2(cap half-angle).
     # So the plate reads pi L sin^2(theta_max), L = E/pi  (pi L = E: a uniform radiance field).
     h = 100.0
-    rend = Renderer(_bare((0.0, 0.0, -1.0)), reflectivity=np.ones((180, 288)))
+    rend = Renderer(_bare((0.0, 0.0, -1.0)), reflectivity=np.ones((180, 288)), variant=variant)
     res = rend.render([[0.0, 0.0, 1.0]], [[0.0, 0.0, -(R + h)]], np.eye(3)[None], seed=9, albedo_samples=8192)
     pi_l = E_SUN_W_M2
     expected = pi_l * (R / (R + h)) ** 2
@@ -362,7 +363,7 @@ def _earth_disc_quadrature(c, sun, rho, response, n):
     L = rho * E_SUN_W_M2 * np.clip(xe @ sun / R, 0, None) / np.pi
     return (L * response(d)).sum() * (1 - cmax) / n * 2 * np.pi / n
 
-def test_albedo_tilted_diode_matches_direction_quadrature():
+def test_albedo_tilted_diode_matches_direction_quadrature(variant):
     # Oracle: a midpoint quadrature of int L cos(theta_d) dOmega over the Earth's disc on a
     # fine (cos theta, phi) grid about nadir, for a diode tilted 60 deg from nadir and the Sun
     # 50 deg from the sub-satellite zenith (uniform rho 0.25, Lambertian).
@@ -373,7 +374,7 @@ def test_albedo_tilted_diode_matches_direction_quadrature():
     c = np.array([0.0, 0.0, -H])
     expected = _earth_disc_quadrature(c, sun, rho, lambda d: np.clip(d @ nrm, 0, None), 1500)
     rend = Renderer(DiodeSurfaces(np.zeros((1, 3)), diode_frame(nrm)[None], [A, A]),
-                    reflectivity=np.full((180, 288), rho))
+                    reflectivity=np.full((180, 288), rho), variant=variant)
     n = 6
     res = rend.render(np.tile(sun, (n, 1)), np.tile(c, (n, 1)), np.tile(np.eye(3), (n, 1, 1)), seed=21,
                       albedo_samples=1024)
@@ -383,7 +384,7 @@ def test_albedo_tilted_diode_matches_direction_quadrature():
 
 
 @pytest.mark.parametrize("hint", [False, True])
-def test_albedo_through_a_well_matches_quadrature_with_the_analytic_aperture(hint):
+def test_albedo_through_a_well_matches_quadrature_with_the_analytic_aperture(hint, variant):
     # Oracle: the midpoint quadrature of int L cos(theta_d) lit(d) dOmega with lit the closed
     # form WellAperture.lit_fraction (eq. 4.15 design, FOV 70 deg); the renderer traces the
     # well's walls (with or without being told the WellAperture, which only steers sampling).
@@ -397,7 +398,7 @@ def test_albedo_through_a_well_matches_quadrature_with_the_analytic_aperture(hin
     expected = _earth_disc_quadrature(c, sun, rho, lambda d: ap.response(d @ frame.T), 1200)
     centre = np.array([0.0, 0.0, -0.12])
     ds = DiodeSurfaces(centre[None], frame[None], [A, A], apertures=[ap] if hint else None)
-    rend = Renderer(ds, _well_mesh(frame, centre, ap), reflectivity=np.full((180, 288), rho))
+    rend = Renderer(ds, _well_mesh(frame, centre, ap), reflectivity=np.full((180, 288), rho), variant=variant)
     n = 6
     res = rend.render(np.tile(sun, (n, 1)), np.tile(c, (n, 1)), np.tile(np.eye(3), (n, 1, 1)), seed=17,
                       albedo_samples=2048)
@@ -406,7 +407,7 @@ def test_albedo_through_a_well_matches_quadrature_with_the_analytic_aperture(hin
     assert np.all(np.abs(z) < 4) and abs(z.mean()) * np.sqrt(n) < 3, (z, expected, res.albedo_w_m2[:, 0])
 
 
-def test_reflectivity_map_orientation():
+def test_reflectivity_map_orientation(variant):
     # Map conventions (docs/conventions.md): row 0 = southern band, column 0 = western-most.
     # A map bright (1) only in the north sees the plain rho = 1 answer from above 60 N and
     # nothing from above 60 S; bright only east of Greenwich: full from above 90 E, zero
@@ -421,7 +422,7 @@ def test_reflectivity_map_orientation():
         la, lo = np.radians(lat_deg), np.radians(lon_deg)
         up = np.array([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)])
         # body frame = ECEF axes (R_ecef_from_body = I); diode faces nadir; Sun at zenith
-        rend = Renderer(_bare(-up), reflectivity=refl)
+        rend = Renderer(_bare(-up), reflectivity=refl, variant=variant)
         return rend.render(up[None], -(R + 700e3) * up[None], np.eye(3)[None], seed=3)
 
     for lat, lon, refl, want in ((60, 10, north, full), (-60, 10, north, 0.0),
@@ -452,10 +453,10 @@ def _orbitish_inputs(n, seed):
     return sun, nad * (R + 700e3), np.tile(np.eye(3), (n, 1, 1))
 
 
-def test_same_seed_is_bitwise_identical_whatever_the_batch_split():
+def test_same_seed_is_bitwise_identical_whatever_the_batch_split(variant):
     ds, mesh = _scene_for_determinism()
     rend = Renderer(ds, mesh, reflectivity=np.load(
-        os.path.join(os.path.dirname(simcore.__file__), "data", "toms_2005_mean.npz"))["reflectivity"])
+        os.path.join(os.path.dirname(simcore.__file__), "data", "toms_2005_mean.npz"))["reflectivity"], variant=variant)
     sun, earth, rot = _orbitish_inputs(10, 1)
     kw = dict(seed=5, rel_se_direct=0.002, rel_se_albedo=0.01)
     a = rend.render(sun, earth, rot, **kw)
@@ -471,7 +472,7 @@ def test_same_seed_is_bitwise_identical_whatever_the_batch_split():
     assert noisy.any() and not np.array_equal(a.albedo_w_m2[noisy], other.albedo_w_m2[noisy])
 
 
-def test_a_ray_grazing_an_edge_reads_the_same_whatever_rays_share_its_packet():
+def test_a_ray_grazing_an_edge_reads_the_same_whatever_rays_share_its_packet(variant):
     # Embree's packet traversal decided one ray that grazes an edge differently with other rays beside it: on the
     # thesis layout along benchmarks/bench_render.py's synthetic orbit, diode 11 at epoch 1484 read 98.6575 W/m^2
     # rendered with epochs 1472-1535 in one batch and 98.6384 with 1408-1535 (one lane of 28 224 flipped). Each
@@ -480,10 +481,10 @@ def test_a_ray_grazing_an_edge_reads_the_same_whatever_rays_share_its_packet():
     from pathlib import Path
     from scenes.config import SatelliteConfig
     from scenes.meshes import build_satellite_mesh
-    bench = runpy.run_path(str(Path(__file__).resolve().parents[1] / "benchmarks" / "bench_render.py"))
+    bench = runpy.run_path(str(Path(__file__).resolve().parents[2] / "benchmarks" / "bench_render.py"))
     sun, earth, rot = bench["synthetic_orbit"](1536, 1.0)
     cfg = SatelliteConfig.load("tilt20_fov70")
-    rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg))
+    rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), variant=variant)
     kw = dict(seed=1, rel_se_direct=0.002, rel_se_albedo=0.01, albedo=False)
     wide = rend.render(sun[1408:], earth[1408:], rot[1408:], epoch_offset=1408, batch_epochs=128, **kw)
     narrow = rend.render(sun[1472:], earth[1472:], rot[1472:], epoch_offset=1472, batch_epochs=64, **kw)
@@ -491,9 +492,9 @@ def test_a_ray_grazing_an_edge_reads_the_same_whatever_rays_share_its_packet():
     assert np.array_equal(wide.direct_w_m2[64:], narrow.direct_w_m2)
 
 
-def test_sun_scale_scales_both_parts_and_progress_is_reported():
+def test_sun_scale_scales_both_parts_and_progress_is_reported(variant):
     ds, mesh = _scene_for_determinism()
-    rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3))
+    rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3), variant=variant)
     sun, earth, rot = _orbitish_inputs(5, 4)
     done = []
     a = rend.render(sun, earth, rot, seed=2, batch_epochs=2, progress=done.append)
@@ -515,7 +516,7 @@ def _target_variance_ratio(rend, sun, earth, rot, seed, floor=0.01):
 
 
 @pytest.mark.parametrize("wrong", [False, True])
-def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch, wrong):
+def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch, wrong, variant):
     # The adaptive rule (Renderer._rounds): a pilot round's standard error sizes a fresh final round to 1.2 x the
     # samples the target needs, with the error falling as n^(-1/2). Its promise is the target in expectation, not
     # on every task: the final se is an estimate from a round sized by another estimate, so se^2 / target^2 of a
@@ -531,7 +532,7 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
         monkeypatch.setattr(sampling, "_shortfall",
                             lambda m, se, n, rel, floor, power: shortfall(m, se, n, rel, floor, 1))
     ds, mesh = _scene_for_determinism()
-    rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3))
+    rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3), variant=variant)
     sun, earth, rot = _orbitish_inputs(64, 2)
     res, q = _target_variance_ratio(rend, sun, earth, rot, seed=3)
     assert len(q) >= 20
@@ -549,7 +550,8 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
     assert split(256) == 4 * 8 ** 2 + 4 * 4 ** 2
     assert set(np.unique(raw.direct_samples)) <= {0, 256, split(256), 256 * _EDGE_BOOST, split(256 * _EDGE_BOOST)}
     assert set(np.unique(raw.albedo_samples)) <= {0, 102 + 26}
-    plain = Renderer(DiodeSurfaces(ds.positions_m, ds.frames, ds.sizes_m), mesh, reflectivity=np.full((180, 288), 0.3))
+    plain = Renderer(DiodeSurfaces(ds.positions_m, ds.frames, ds.sizes_m), mesh, reflectivity=np.full((180, 288), 0.3),
+                     variant=variant)
     raw = plain.render(sun, earth, rot, seed=3, direct_samples=256, albedo_samples=128)
     assert set(np.unique(raw.direct_samples)) <= {0, 256, 256 * _EDGE_BOOST}
     assert set(np.unique(raw.albedo_samples)) <= {0, 128}
@@ -557,8 +559,8 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
 
 # ----------------------------------------------------------------------------- inputs
 
-def test_bad_inputs_raise_teaching_errors():
-    rend = Renderer(_bare())
+def test_bad_inputs_raise_teaching_errors(variant):
+    rend = Renderer(_bare(), variant=variant)
     with pytest.raises(ValueError, match=r"shape \(N, 3\)"):
         rend.render(np.zeros((3, 2)))
     with pytest.raises(ValueError, match="unit vectors"):
@@ -572,11 +574,11 @@ def test_bad_inputs_raise_teaching_errors():
     with pytest.raises(ValueError, match="frames"):
         DiodeSurfaces(np.zeros((2, 3)), np.tile(np.eye(3), (3, 1, 1)), [A, A])
     with pytest.raises(TypeError, match="DiodeSurfaces"):
-        Renderer(np.zeros((1, 3)))
+        Renderer(np.zeros((1, 3)), variant=variant)
 
 
-def test_non_finite_epochs_become_nan_and_invalid():
-    rend = Renderer(_bare(), reflectivity=np.full((180, 288), 0.3))
+def test_non_finite_epochs_become_nan_and_invalid(variant):
+    rend = Renderer(_bare(), reflectivity=np.full((180, 288), 0.3), variant=variant)
     sun = np.array([[0.0, 0.0, 1.0], [np.nan, 0.0, 1.0], [0.0, 0.6, 0.8]])
     earth = np.tile([0.0, 0.0, -7e6], (3, 1))
     res = rend.render(sun, earth, np.tile(np.eye(3), (3, 1, 1)))
@@ -603,7 +605,7 @@ def _disc_segment_share(h_over_a):
 
 
 @pytest.mark.parametrize("boosted", [True, False])
-def test_a_sliver_of_the_solar_disc_is_not_missed(boosted, monkeypatch):
+def test_a_sliver_of_the_solar_disc_is_not_missed(boosted, monkeypatch, variant):
     # A plate 20 m above a bare diode facing the Sun at zenith, its edge cutting ~0.1 % of the solar disc:
     # a diode point at y sees the disc cut by a chord at h(y) = (Y_EDGE - y) / L from its centre (rad), so
     # the irradiance is E_sun (1 - mean over the diode of the segment share at h(y)) (circular segment area,
@@ -621,7 +623,7 @@ def test_a_sliver_of_the_solar_disc_is_not_missed(boosted, monkeypatch):
     y_edge = L * a * (1.0 - 0.0141)                    # a chord at 0.9859 a: ~0.1 % of the disc
     plate = np.array([[-30.0, y_edge, L], [30.0, y_edge, L], [30.0, y_edge + 60.0, L], [-30.0, y_edge + 60.0, L]])
     mesh = trimesh.Trimesh(plate, [[0, 1, 2], [0, 2, 3]], process=False)
-    rend = Renderer(_bare(), mesh, sun_angular_radius_rad=a)
+    rend = Renderer(_bare(), mesh, sun_angular_radius_rad=a, variant=variant)
     x, w = np.polynomial.legendre.leggauss(64)
     y = 0.5 * A * x                                    # diode points across its side, along body y
     v_axis = rend.diodes.frames[0, 1]                  # the diode's v is body y (diode_frame of +z)

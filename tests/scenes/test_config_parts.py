@@ -15,7 +15,7 @@ from scenes.config import SatelliteConfig
 from simcore.cli import main
 from simcore.pipeline.runfile import check_run
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "scenes" / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "scenes" / "examples"
 BASE = """name = "t"
 [layout]
 pattern = "faces6"
