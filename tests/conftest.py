@@ -10,7 +10,7 @@ import pytest
 def render_variants():
     """Return the Mitsuba variants the renderer tests run on: llvm_ad_mono always, and cuda_ad_mono as well where
     ``choose_variant`` picks it (Dr.Jit has a working CUDA device). Decided once, at collection."""
-    from simcore.render.irradiance import choose_variant
+    from simcore.render import choose_variant
     return ("llvm_ad_mono",) + (("cuda_ad_mono",) if choose_variant() == "cuda_ad_mono" else ())
 
 

@@ -12,7 +12,7 @@ integrates
 with the classical fourth-order Runge-Kutta method on a fixed inner step
 (``max_step_s``, 0.1 s by default: at 2 deg/s the local error per step is
 ~(0.0035 rad)^5, far below what any sensor sees), renormalising q after
-every step. Checked (tests/test_dynamics.py) against the closed-form
+every step. Checked (tests/environment/test_dynamics.py) against the closed-form
 axisymmetric solution (body rate precessing about the symmetry axis at
 lambda = (I3 - I1)/I1 * w3) and the conservation of rotational energy and of
 the angular momentum in the inertial frame.

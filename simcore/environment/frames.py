@@ -52,7 +52,7 @@ with erfa on a coarse grid (``PN_GRID_STEP_S`` = 1 h) and interpolated with a
 4-point (cubic) Lagrange interpolant per matrix element, then
 re-orthonormalised. The largest short-period nutation term (13.66 d, 0.23")
 leaves an interpolation error of ~1e-14 rad (far below 1 micrometre at
-7000 km; tests/test_frames.py bounds it against per-epoch erfa). The fast
+7000 km; tests/environment/test_frames.py bounds it against per-epoch erfa). The fast
 parts, GMST82, GMST06 (= ERA + polynomial) and polar motion, are computed
 exactly per epoch. If the grid would have as many nodes as epochs (sparse
 epochs over a long span), everything is computed per epoch instead.

@@ -25,7 +25,7 @@ Speed: the ephemeris is evaluated on a coarse TT grid (``SUN_GRID_STEP_S`` =
 1 h) and interpolated with a cubic (4-point Lagrange) per component; the
 Sun's geocentric motion (1 deg/day plus the 4670 km monthly wobble of the
 Earth about the Earth-Moon barycentre) leaves an interpolation error below
-1e-9 deg, bounded against per-epoch evaluation in tests/test_sun.py.
+1e-9 deg, bounded against per-epoch evaluation in tests/environment/test_sun.py.
 """
 import erfa
 import numpy as np

@@ -6,7 +6,7 @@ Lakes (type 2, and the islands and ponds in them, types 3 and 4) lie inside the 
 land here: the fraction is of the *sea*, the water whose glint :mod:`simcore.radiometry.glint` models with
 Cox & Munk's ocean slopes (a lake's waves follow another law; all lakes together cover ~0.5 % of the Earth,
 the Caspian Sea 0.07 %). At the crude resolution (~25 km) small islands are missing and coasts are cut
-straight, which moves the global sea fraction by a few tenths of a percent (``tests/test_water.py``).
+straight, which moves the global sea fraction by a few tenths of a percent (``tests/environment/test_water.py``).
 
 A cell's fraction is the share of ``_SUB`` x ``_SUB`` points inside it, equal in area (uniform in longitude
 and in sin(latitude)), that fall on no land polygon (point in polygon in the longitude/latitude plane by the

@@ -140,7 +140,7 @@ class Camera:
     """A pinhole camera in the render frame (m): Mitsuba's ``perspective`` sensor with ``fov_axis = "x"``.
 
     ``to_world()`` is the matrix handed to Mitsuba; ``project()`` inverts it, so annotations land on
-    the pixels Mitsuba draws (``tests/test_view.py`` renders small bright spheres to prove it).
+    the pixels Mitsuba draws (``tests/scenes/test_view.py`` renders small bright spheres to prove it).
     """
 
     origin_m: tuple

@@ -27,7 +27,7 @@ The fourth rendered component, ``reflected`` (sunlight and Earth light reflected
 by the spacecraft's own non-black surfaces onto a diode), is NOT checked: the
 analytic model's surfaces are black, so it has no reference for it; the report
 counts the diode-epochs that carry some (``reflected_unchecked``), and the path
-tracer is tested against closed forms in tests/test_reflected.py.
+tracer is tested against closed forms in tests/render/test_reflected.py.
 
 For each component four families of tests, over the diode-epochs whose
 standard error is positive. The others are tested one by one: a value the

@@ -188,7 +188,7 @@ class PreparedRun:
         """Return the one worker thread that computes the direct reference (numpy, which releases the GIL
         in its loops, and the body box's shadow as a traced Dr.Jit kernel) and writes finished chunks while the
         main thread renders: on few cores it fills the core that the renderer's Python parts leave idle. It
-        freezes nothing (a frozen function records in its own thread; see tests/test_render_freeze.py, the second
+        freezes nothing (a frozen function records in its own thread; see tests/render/test_freeze.py, the second
         thread's test); its Dr.Jit kernel runs between frozen calls (:data:`simcore._llvm.FROZEN_CALLS`)."""
         return concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="sunsim-worker")
 

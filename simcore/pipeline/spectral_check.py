@@ -37,7 +37,7 @@ Variants: Mitsuba's variant is process-global and the renderer (:mod:`simcore.re
 ``llvm_ad_mono``. Everything here runs inside :func:`_spectral_variant`, which sets ``llvm_ad_spectral`` and
 restores the caller's variant afterwards (``mi.variant_context`` refuses when no variant was set; then the
 spectral one stays, and a :class:`~simcore.render.Renderer` sets its own on every render anyway).
-A mono render before and after a spectral estimate gives identical results (tests/test_spectral_check.py).
+A mono render before and after a spectral estimate gives identical results (tests/pipeline/test_spectral_check.py).
 """
 from contextlib import contextmanager
 from dataclasses import dataclass

@@ -35,7 +35,7 @@ of cells no sampling could find. Seen from space, the glint has also crossed the
 its direct transmittance on both paths (:func:`air_mass`, :data:`GLINT_OPTICAL_DEPTH`, ``SunGlint.tau``), which
 removes the rest of that sliver (both paths ~35 air masses long). No multiple reflections. The albedo of this surface,
 ``integral f cos(theta_v) d omega_v``, is then the mean over the facets the observer is not masked from of their
-Fresnel share weighted by their area seen from the Sun (``tests/test_glint.py`` checks that identity in slope
+Fresnel share weighted by their area seen from the Sun (``tests/radiometry/test_glint.py`` checks that identity in slope
 space). It equals the flat sea's Fresnel reflectance ``rho(cos theta_s)`` to 1 % only on a calm sea: at W = 0
 (sigma^2 = 0.003) +0.1/+0.5/+0.9 % at 20/40/60 deg solar zenith; with wind, tilted facets see the Sun at larger
 local angles, where water reflects more (at 7 m/s, 40 deg: some +7 %). Neither are whitecaps, the light

@@ -22,13 +22,13 @@ with f the glint's own Cox-Munk BRDF (:mod:`simcore.radiometry.glint`: unpolaris
 shadowing, two-way direct transmittance of the air) at :data:`REFERENCE_WIND_M_S`. a(mu_s) is, on a calm sea,
 the Fresnel reflectance of the flat sea (the measured albedos of Payne 1972, J. Atmos. Sci. 29, 959, and the
 direct-beam surface albedo of Jin et al. 2004, Geophys. Res. Lett. 31, L22301, follow the same Fresnel curve, with
-the waves' tilt at low Sun; ``tests/test_sea_surface.py`` compares with Briegleb et al. 1986's fit to Payne's data);
+the waves' tilt at low Sun; ``tests/radiometry/test_sea_surface.py`` compares with Briegleb et al. 1986's fit to Payne's data);
 at the equator A_s is ~0.024 of the ~0.09 CERES clear sea. The reflected *sky* light (~0.066 of the diffuse light,
 Payne 1972) is left with the rest: it has the blue colour of the path radiance that 6S's ratio describes.
 
 **With glint** (``--glint W``) the glint model renders the specular reflection itself, with its angles: the
 band map's sea then keeps only the rest, ``k_water (C - A_s(W))`` with A_s at the glint's own wind, and the
-glint adds A_s(W) back in the mean over the Sun's angles (``tests/test_sea_surface.py``): nothing is counted
+glint adds A_s(W) back in the mean over the Sun's angles (``tests/radiometry/test_sea_surface.py``): nothing is counted
 twice. What differs between the two runs is only *where* the specular light goes (a Lambertian share of the
 cell's albedo against the glint spot).
 
@@ -46,7 +46,7 @@ Current, set it: 0.21). An open sea brightens toward the poles (0.09 at the equa
 Sun), so a fixed water reference would call the open Norwegian Sea a quarter ice. CERES weights by the
 insolation, so this is the sunlit, summer-heavy ice share, the one the glint, seen only in sunlight, needs:
 over the GSHHG sea it totals ~6.5e6 km^2 in the north and ~7.8e6 in the south (printed by ``pytest -s
-tests/test_sea_surface.py -k sea_ice_share``), between the year's minimum and maximum extents (NSIDC Sea Ice
+tests/radiometry/test_sea_surface.py -k sea_ice_share``), between the year's minimum and maximum extents (NSIDC Sea Ice
 Index v3, Fetterer et al. 2017, doi:10.7265/N5K072F8). Seasonal masks need monthly data the project does not
 ship. The band data's own water/snow_ice split (``build_band_data.py``, ``sea_ice``) used the 6S water
 reflectance (0.054) as rho_open at every latitude, which finds ~1.8 times this ice (rebuilding it needs the

@@ -20,7 +20,7 @@ the next centres inside a cone lie 0.0144 deg in (fig. 3.11), and centres
 outside a cone never count. Every margin in (0.00521, 0.01020) deg gives the
 same six maps and none outside does, so the margin is not a tuning knob but
 the thesis' unprinted parameter, known to that interval; ``FOV_MARGIN_DEG``
-is its centre, 0.0077 deg, 0.0025 deg from either tie (tests/test_coverage.py
+is its centre, 0.0077 deg, 0.0025 deg from either tie (tests/studies/test_coverage.py
 recomputes the interval from the captions).
 
 A rule without any margin does not reproduce the captions: the bare centre

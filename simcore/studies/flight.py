@@ -338,7 +338,7 @@ def uniform_baseline(measured, cos_direct, unit):
 def attitude_check(measured, direct, sunlit):
     """Return the attitude sanity check of one diode: among the sunlit samples reading >= CHECK_READING, how many
     the prediction puts nearly dark (direct < CHECK_PREDICTED); ``pass`` while their share stays under
-    CHECK_MAX_SHARE. A wrong quaternion convention fails it (tests/test_flight_check.py)."""
+    CHECK_MAX_SHARE. A wrong quaternion convention fails it (tests/studies/test_flight.py)."""
     bright = sunlit & (measured >= CHECK_READING)
     n = int(bright.sum())
     miss = int((bright & (direct < CHECK_PREDICTED)).sum())

@@ -13,7 +13,7 @@ error, and the diode's response (a bare cosine against one under a cover glass).
 the median |residual| it makes.
 
 Every number on the page is a value of ``results.json`` (``render_page(results, marked=True)`` wraps each in
-``⟦...⟧``; tests/test_flight_check.py proves no other digit is on the page but the fixed words listed there).
+``⟦...⟧``; tests/studies/test_flight.py proves no other digit is on the page but the fixed words listed there).
 """
 import datetime as _dt
 import json

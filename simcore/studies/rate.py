@@ -109,7 +109,7 @@ def rate_page(result):
            f"noise density Westgard's (2015) controller handled, {req} deg/s/sqrt(Hz) at 1 s steps (Haave 2016 sec. "
            f"3.1.2); averaged over T seconds that is {req} / sqrt(T) deg/s. Errors are rms per axis from the filter's "
            "start (sunlit and eclipse); the computation is simcore/studies/rate.py, tested against white noise "
-           "averaged over a window (tests/test_rate_study.py).", "",
+           "averaged over a window (tests/studies/test_rate.py).", "",
            "| gyro | data sheet density [deg/s/sqrt(Hz)] | raw [deg/s] | filtered [deg/s] | "
            f"averaged {w[i60]:g} s [deg/s] | requirement at {w[i60]:g} s [deg/s] | factor over it |",
            "|---|---|---|---|---|---|---|"]

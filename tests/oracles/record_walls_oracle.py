@@ -59,7 +59,7 @@ Cases (materials are the Mitsuba BSDF dicts the old tracer used, two-sided):
 
 def trace(path, wanted):
     """Trace the cases whose names contain one of ``wanted`` (all when empty) with the tree of commit 4277e88 on
-    sys.path, and write them as JSON to ``path``: the recording of tests/walls_oracle_record.py at 0894aa2."""
+    sys.path, and write them as JSON to ``path``: the recording of tests/oracles/record_walls_oracle.py at 0894aa2."""
     import time
 
     import numpy as np
