@@ -54,7 +54,7 @@ class Rounds:
         if len(go) == len(g_):
             m, se, dof, n = self._round(kernel, base, kind, g_, k_, plan, pilot, 0)
         elif len(go):                                   # the settled tasks read as a pilot with no variance
-            sub = replace(plan, fac=_sub(plan.fac, go), skip=None if plan.skip is None else plan.skip[go])
+            sub = replace(plan, n0=n0[go], fac=_sub(plan.fac, go), skip=None if plan.skip is None else plan.skip[go])
             for a, b in zip((m, se, dof, n), self._round(kernel, _take(base, go), kind, g_[go], k_[go], sub,
                                                          pilot[go], 0)):
                 a[go] = b
