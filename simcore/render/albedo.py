@@ -37,8 +37,8 @@ _BOUND_SHARE_GLINT = 1.0
 # Rounds toward the albedo's target (Rounds._rounds, docs/renderer.md "Rounds toward a target"): the pilot takes
 # n0 / _ALBEDO_PILOT samples; its standard error, raised by _ALBEDO_CONF / sqrt(2 nu) of itself, sizes the final
 # round with the error falling as n^(-1/_ALBEDO_POWER). Stratified in the CDF and the bin's azimuth, the albedo's error
-# falls faster than n^(-1/2): n^(-0.62) from pilot to final round over the default study's orbit (bench_render,
-# 400 epochs; docs/renderer.md).
+# falls faster than n^(-1/2): n^(-0.75) to n^(-0.77) from pilot to final round on bench_render's orbit (TOMS 2005,
+# 500 epochs; n^(-0.62) before the azimuth was stratified; docs/renderer.md, "Fewer rays for the same accuracy").
 _ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.75, 4.0 / 3.0
 
 

@@ -21,7 +21,7 @@ class Sampling:
     ``plain``, no aperture split; ``pilot``, the pilot round takes ``n0 // pilot`` samples; ``conf``, the pilot's
     standard error is raised by ``conf / sqrt(2 nu)`` of itself (nu its degrees of freedom) before it sizes the
     final round; ``settled`` (T,) bool or None, tasks whose estimate is known to have no variance (almost surely):
-    they skip the pilot and take the final round of a task whose pilot read none."""
+    they skip the pilot and take a final round of ``n0``, as a task whose pilot read none."""
 
     seed: int
     n0: object
@@ -58,14 +58,10 @@ class Rounds:
             for a, b in zip((m, se, dof, n), self._round(kernel, _take(base, go), kind, g_[go], k_[go], sub,
                                                          pilot[go], 0)):
                 a[go] = b
-        # an upper confidence bound on the pilot's standard error (its relative spread is ~1 / sqrt(2 nu)); a task
-        # whose pilot read no variance at all takes a final round of the pilot's size, or of 2 / rel samples if more
-        # (one lane in n that differs from the rest gives a relative standard error of ~1 / n to 1.25 / n with the
-        # aperture split's weights: within the target at 2 / rel)
+        # an upper confidence bound on the pilot's standard error (its relative spread is ~1 / sqrt(2 nu))
         need, want = _shortfall(m, se * (1.0 + plan.conf / np.sqrt(2.0 * np.maximum(dof, 1.0))), n, plan.rel,
                                 plan.floor, plan.power)
-        least = np.where(se > 0, n0, np.minimum(np.maximum(pilot, np.ceil(2.0 / plan.rel)), n0)).astype(np.int64)
-        counts = np.clip(np.where(need, want, least), least, np.maximum(plan.cap, least)).astype(np.int64)
+        counts = np.clip(np.where(need, want, n0), n0, np.maximum(plan.cap, n0)).astype(np.int64)
         return self._round(kernel, base, kind, g_, k_, plan, counts, 1)
 
     def _round(self, kernel, base, kind, g_, k_, plan, counts, rnd):
