@@ -37,7 +37,6 @@ import time
 import numpy as np
 
 from simcore.constants import OMEGA_EARTH_RAD_S, R_EARTH_MEAN_M
-from simcore.render import Renderer
 
 MU_EARTH = 3.986004418e14  # m^3/s^2, IERS conventions (2010)
 
@@ -76,6 +75,7 @@ def bench_3u(sun, earth, rot, targets, *, variant=None, threads=None):
     """Return the 3U panels example's timings (dict, ms per epoch) on the given synthetic orbit."""
     from importlib.resources import files
     from scenes.satellite import Satellite
+    from simcore.render import Renderer
 
     sat = Satellite.load(files("scenes") / "examples" / "cubesat3u_panels.toml")
     cfg, mesh = sat.config, sat.mesh             # the mesh is built before the clock starts
@@ -159,6 +159,7 @@ def main():
     from dataclasses import replace
     from scenes.config import SatelliteConfig
     from scenes.satellite import Satellite
+    from simcore.render import Renderer    # (here: benchmarks/bench_rays.py imports synthetic_orbit in older trees)
     cfg = SatelliteConfig.load(args.config)
     if args.material != "black":
         cfg = replace(cfg, body=replace(cfg.body, material=args.material),

@@ -92,10 +92,16 @@ class DirectSun:
         if self.control_variate and not disc and not plain:
             lit = self._lit_fraction(k_, sun[e_])
             skip = np.stack([lit <= 0.0, lit >= 1.0], axis=1)
+        settled = None
         if not plain:
-            n0 = np.where(self._partly_blocked(base, e_, sun, earth), n0 * _EDGE_BOOST, n0)
+            edge = self._partly_blocked(base, e_, sun, earth)
+            n0 = np.where(edge, n0 * _EDGE_BOOST, n0)
+            if self.control_variate:
+                # the analytic well is the only shadow the probes found: the split's estimate has (almost surely)
+                # no variance, so no pilot sizes its round (Rounds._rounds)
+                settled = ~edge
         m, se, dof, n = self._rounds(self._direct_kernel, base, _DIRECT_PLAIN if plain else _DIRECT, g_, k_,
-                                     replace(plan, n0=n0, fac=fac, skip=skip))
+                                     replace(plan, n0=n0, fac=fac, skip=skip, settled=settled))
         out["dm"][e_, k_], out["dse"][e_, k_], out["ddof"][e_, k_], n_used[e_, k_] = m, se, dof, n
 
     def _partly_blocked(self, base, e_, sun, earth):

@@ -1,6 +1,6 @@
 """Rounds of samples per task: the sampling plan (:class:`Sampling`), one round traced and reduced to a mean, a
 standard error and its degrees of freedom, and the two-stage rule that sizes a round to a target (docs/renderer.md)."""
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -18,7 +18,10 @@ class Sampling:
     the estimator's stratification can take for requested ones; ``power``, the error falls as n^(-1/power);
     ``rel``, the target relative standard error (None: one round of ``n0``); ``floor``, the absolute one
     (W/m^2); ``cap``, the most samples per task; ``skip`` (T, 2), groups of the aperture split known to be empty;
-    ``plain``, no aperture split."""
+    ``plain``, no aperture split; ``pilot``, the pilot round takes ``n0 // pilot`` samples; ``conf``, the pilot's
+    standard error is raised by ``conf / sqrt(2 nu)`` of itself (nu its degrees of freedom) before it sizes the
+    final round; ``settled`` (T,) bool or None, tasks whose estimate is known to have no variance (almost surely):
+    they skip the pilot and take a final round of ``n0``, as a task whose pilot read none."""
 
     seed: int
     n0: object
@@ -30,6 +33,9 @@ class Sampling:
     cap: object = None
     skip: object = None
     plain: bool = False
+    pilot: int = 4
+    conf: float = 0.0
+    settled: object = None
 
 
 class Rounds:
@@ -42,9 +48,19 @@ class Rounds:
         n0 = np.broadcast_to(np.asarray(plan.n0, np.int64), (len(g_),))
         if plan.rel is None:
             return self._round(kernel, base, kind, g_, k_, plan, n0.copy(), 0)
-        pilot = np.maximum(n0 // 4, 16)
-        m, se, _, n = self._round(kernel, base, kind, g_, k_, plan, pilot, 0)
-        need, want = _shortfall(m, se, n, plan.rel, plan.floor, plan.power)
+        pilot = np.maximum(n0 // plan.pilot, 16)
+        m, se, dof, n = np.zeros(len(g_)), np.zeros(len(g_)), np.full(len(g_), np.inf), pilot.astype(float)
+        go = np.arange(len(g_)) if plan.settled is None else np.flatnonzero(~plan.settled)
+        if len(go) == len(g_):
+            m, se, dof, n = self._round(kernel, base, kind, g_, k_, plan, pilot, 0)
+        elif len(go):                                   # the settled tasks read as a pilot with no variance
+            sub = replace(plan, n0=n0[go], fac=_sub(plan.fac, go), skip=None if plan.skip is None else plan.skip[go])
+            for a, b in zip((m, se, dof, n), self._round(kernel, _take(base, go), kind, g_[go], k_[go], sub,
+                                                         pilot[go], 0)):
+                a[go] = b
+        # an upper confidence bound on the pilot's standard error (its relative spread is ~1 / sqrt(2 nu))
+        need, want = _shortfall(m, se * (1.0 + plan.conf / np.sqrt(2.0 * np.maximum(dof, 1.0))), n, plan.rel,
+                                plan.floor, plan.power)
         counts = np.clip(np.where(need, want, n0), n0, np.maximum(plan.cap, n0)).astype(np.int64)
         return self._round(kernel, base, kind, g_, k_, plan, counts, 1)
 
@@ -84,6 +100,11 @@ class Rounds:
         with np.errstate(divide="ignore", invalid="ignore"):
             dof = np.where(v2 > 0, v * v / np.where(v2 > 0, v2, 1.0), np.inf)
         return plan.fac * est, plan.fac * np.sqrt(v), dof, nr
+
+
+def _sub(x, idx):
+    """Return ``x`` (T,) at ``idx``, or ``x`` itself when it is one value."""
+    return x[idx] if np.ndim(x) else x
 
 
 def _direct_size(n):

@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 import trimesh
+from scipy import stats
 from scipy.integrate import quad
 
 import simcore
@@ -383,6 +384,30 @@ def test_albedo_tilted_diode_matches_direction_quadrature(variant):
     assert np.all(np.abs(z) < 4) and abs(z.mean()) * np.sqrt(n) < 3, (z, expected, res.albedo_w_m2[:, 0])
 
 
+@pytest.mark.parametrize("rel", [None, 0.01])
+def test_albedo_standard_error_is_calibrated_against_the_quadrature(rel):
+    # Oracle: the direction quadrature of the tilted-diode test (Sun 50 deg off the sub-satellite zenith: the
+    # terminator crosses the cap, so the radiance varies with the bins' azimuth, which the strata of the CDF also
+    # stratify). 400 epochs of the same geometry, each its own random numbers: t = (estimate - quadrature) / se
+    # follows Student's t with the estimate's effective degrees of freedom (~7 here: the crescent's few strata carry
+    # the variance), so its normal scores Phi^-1(F_t(t)) must be ~N(0, 1): mean within 3.5 / sqrt(n) (a bias of
+    # ~0.2 se fails), sd within 1 +- 0.12 (3.4 sigma of a sample sd of 400; an se off by 15 % fails; seed 5: mean
+    # 0.07, sd 0.94 and 0.99). With a target (rel), the fresh final round that the pilot sized gives both.
+    h, rho = 650e3, 0.25
+    nrm = np.array([np.sin(np.radians(120)), 0.0, np.cos(np.radians(120))])
+    sun = np.array([np.sin(np.radians(-50)), 0.0, np.cos(np.radians(-50))])
+    c = np.array([0.0, 0.0, -(R + h)])
+    expected = _earth_disc_quadrature(c, sun, rho, lambda d: np.clip(d @ nrm, 0, None), 1500)
+    rend = Renderer(DiodeSurfaces(np.zeros((1, 3)), diode_frame(nrm)[None], [A, A]),
+                    reflectivity=np.full((180, 288), rho))
+    n = 400
+    res = rend.render(np.tile(sun, (n, 1)), np.tile(c, (n, 1)), np.tile(np.eye(3), (n, 1, 1)), seed=5,
+                      albedo_samples=256, rel_se_albedo=rel, rel_se_direct=rel and 0.002, batch_epochs=400)
+    t = (res.albedo_w_m2[:, 0] - expected) / res.albedo_se_w_m2[:, 0]
+    z = stats.norm.ppf(stats.t.cdf(t, res.albedo_dof[:, 0]))
+    assert abs(z.mean()) * np.sqrt(n) < 3.5 and abs(z.std() - 1.0) < 0.12, (z.mean(), z.std())
+
+
 @pytest.mark.parametrize("hint", [False, True])
 def test_albedo_through_a_well_matches_quadrature_with_the_analytic_aperture(hint, variant):
     # Oracle: the midpoint quadrature of int L cos(theta_d) lit(d) dOmega with lit the closed
@@ -511,31 +536,32 @@ def _target_variance_ratio(rend, sun, earth, rot, seed, floor=0.01):
     has no variance: the analytic well is the mesh's.)"""
     res = rend.render(sun, earth, rot, seed=seed, rel_se_direct=0.002, rel_se_albedo=0.01,
                       abs_se_floor_w_m2=floor, max_direct_samples=1 << 17, max_albedo_samples=1 << 16)
-    sized = (res.albedo_samples > 256 + 64) & (res.albedo_samples < (1 << 16) - 64)
+    sized = (res.albedo_samples > 256) & (res.albedo_samples < (1 << 16) - 64)
     return res, (res.albedo_se_w_m2[sized] / np.maximum(0.01 * res.albedo_w_m2[sized], floor)) ** 2
 
 
 @pytest.mark.parametrize("wrong", [False, True])
 def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch, wrong, variant):
-    # The adaptive rule (Renderer._rounds): a pilot round's standard error sizes a fresh final round to 1.2 x the
-    # samples the target needs, with the error falling as n^(-1/2). Its promise is the target in expectation, not
-    # on every task: the final se is an estimate from a round sized by another estimate, so se^2 / target^2 of a
-    # task follows F(nu_final, nu_pilot) / 1.2, which exceeds 1 on a few tasks (64 epochs here: 7 % of them, up to
-    # 1.64). The oracle is that promise, pooled over the ~52 sized tasks: mean (se / target)^2 <= 1 (0.36-0.49
-    # over seeds 1-12, sd 0.035, with the rule's rounding up: a false alarm needs a > 15 sigma excursion).
-    # Deliberately wrong input: the rule told the error falls as n^(-1) (power 1): the mean reads ~1.6 and fails.
+    # The adaptive rule (Rounds._rounds): a pilot round's standard error (raised toward an upper confidence bound by
+    # its degrees of freedom) sizes a fresh final round to 1.2 x the samples the target needs, with the albedo's
+    # error falling as n^(-1/_ALBEDO_POWER). Its promise is the target in expectation, not on every task: the final
+    # se is an estimate from a round sized by another estimate, so se^2 / target^2 of a task exceeds 1 on a few
+    # tasks. The oracle is that promise, pooled over the ~50 sized tasks (more samples than the first round's 256,
+    # fewer than the cap): mean (se / target)^2 <= 1 (0.45-0.51 over seeds 1-6).
+    # Deliberately wrong input: the rule told the error falls as n^(-2) (power 0.5): ~20 tasks are sized, too few
+    # samples each, and the mean reads 1.38-1.67 over seeds 1-6 and fails.
     # (Was: every task's se <= its target, which held for seed 3 by luck, at 0.999 on one task; cuda_ad_mono's
     # other float rounding put that task at > 1 on an H100.)
     from simcore.render import sampling
     if wrong:
         shortfall = sampling._shortfall
         monkeypatch.setattr(sampling, "_shortfall",
-                            lambda m, se, n, rel, floor, power: shortfall(m, se, n, rel, floor, 1))
+                            lambda m, se, n, rel, floor, power: shortfall(m, se, n, rel, floor, 0.5))
     ds, mesh = _scene_for_determinism()
     rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3), variant=variant)
     sun, earth, rot = _orbitish_inputs(64, 2)
     res, q = _target_variance_ratio(rend, sun, earth, rot, seed=3)
-    assert len(q) >= 20
+    assert len(q) >= (15 if wrong else 40)
     assert (q.mean() > 1) == wrong, q.mean()
     if wrong:
         return
