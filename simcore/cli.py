@@ -277,6 +277,7 @@ def cmd_view(args):
     """Render the annotated scene picture: the CubeSat at one epoch, over the Earth coloured by its reflectivity."""
     from scenes.config import SatelliteConfig
     from simcore.picture.view import view_epoch, view_picture
+    from simcore.environment.earth import Earth
     from simcore.environment.epochs import Epochs
     from simcore.pipeline.store import check_writable
     from simcore.radiometry import band
@@ -299,7 +300,7 @@ def cmd_view(args):
         os.makedirs("runs", exist_ok=True)
         args.output = os.path.join("runs", f"scene_{cfg.name}" + ("_close" if args.close_up else "") + ".png")
     check_writable(args.output)
-    view_picture(cfg, args.output, ve, close_up=args.close_up, reflectivity_map=rmap, resolution=(w, h),
+    view_picture(cfg, args.output, ve, close_up=args.close_up, earth=Earth(rmap), resolution=(w, h),
                  spp=args.spp, seed=args.seed)
     print(json.dumps({"config": cfg.name, "time": ve.epoch_iso, "picture": str(args.output)}) if args.json
           else f"picture: {args.output}")

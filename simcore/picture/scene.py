@@ -30,7 +30,6 @@ from scenes.satellite import Satellite
 
 from simcore import _llvm
 from simcore.environment.earth import Earth
-from simcore.environment.maps import named_map
 from simcore.constants import R_EARTH_MEAN_M
 
 VARIANT = "llvm_ad_mono"
@@ -212,14 +211,14 @@ def _default_camera(g, resolution, camera_distance_m, fov_deg):
 
 
 def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, camera_distance_m=1.0,
-                fov_deg=36.0, max_depth=4, *, camera=None, reflectivity_map=None, earth=True, fill_radiance=0.0):
+                fov_deg=36.0, max_depth=4, *, camera=None, earth=None, show_earth=True, fill_radiance=0.0):
     """Return (Mitsuba scene dict, shape ids, their part kinds, the :class:`Camera`) for a picture (render frame, m).
 
     ``config``: a :class:`scenes.config.SatelliteConfig` or a :class:`scenes.satellite.Satellite`;
     ``camera`` overrides the default one (28 deg above the horizontal, ``camera_distance_m`` away);
     ``earth``: a :class:`simcore.environment.earth.Earth` (its map textures the sphere of its radius with raw
-    values), True for the Earth of ``reflectivity_map`` (default TOMS 2005), False to leave it out (a close-up
-    of the satellite alone); ``fill_radiance`` > 0 adds a uniform sky of that
+    values; default the TOMS 2005 Earth); ``show_earth=False`` leaves it out (a close-up of the satellite
+    alone); ``fill_radiance`` > 0 adds a uniform sky of that
     radiance (units of E_sun / pi) so that faces turned from the Sun stay legible.
     """
     mi = _mi()
@@ -233,12 +232,11 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
     sun_body = sun_body / np.linalg.norm(sun_body)
     if camera is None:
         camera = _default_camera(g, resolution, camera_distance_m, fov_deg)
-    if isinstance(earth, Earth):
-        if reflectivity_map is not None:
-            raise ValueError("give the picture's Earth either as earth=Earth(...) or as reflectivity_map=, not both")
-        rmap = earth.map
-    else:
-        rmap = named_map("toms2005") if reflectivity_map is None else reflectivity_map
+    if earth is None:
+        earth = Earth()
+    if not isinstance(earth, Earth):
+        raise TypeError(f"the picture's earth is a simcore.environment.earth.Earth, got {type(earth).__name__}")
+    rmap = earth.map
     parts = (config.display_parts if isinstance(config, Satellite)
              else build_parts(config, include_diodes=True))
     scene = {
@@ -251,7 +249,7 @@ def build_scene(config, epoch_geometry=None, resolution=(960, 540), spp=64, came
     if fill_radiance > 0:
         scene["sky"] = {"type": "constant", "radiance": {"type": "uniform", "value": float(fill_radiance)}}
     names, kinds = [], []
-    if earth:
+    if show_earth:
         bitmap = mi.Bitmap(map_texture_array(rmap).astype(np.float32))
         scene["earth"] = {
             "type": "sphere", "radius": float(rmap.radius_m),

@@ -28,7 +28,7 @@ from simcore.picture.scene import (_REFLECTANCE, Camera, PictureGeometry, build_
                                    render_passes, srgb8)
 from simcore.constants import R_EARTH_MEAN_M
 from simcore.environment.coastlines import coastlines_deg, lonlat_to_ecef_m
-from simcore.environment.maps import named_map
+from simcore.environment.earth import Earth
 
 # the view's default instant: 40 min into the default run (2016-07-02T00:00Z), ESTCube-1 in sunlight
 DEFAULT_VIEW_TIME = "2016-07-02T00:40:00Z"
@@ -264,13 +264,15 @@ class Panel:
     labelled: tuple
 
 
-def _render_panel(config, g, camera, rmap, earth, spp, seed, label):
-    scene_dict, names, kinds, _ = build_scene(config, g, camera=camera, reflectivity_map=rmap, earth=earth,
+def _render_panel(config, g, camera, earth, show_earth, spp, seed, label):
+    earth = Earth() if earth is None else earth
+    rmap = earth.map
+    scene_dict, names, kinds, _ = build_scene(config, g, camera=camera, earth=earth, show_earth=show_earth,
                                               fill_radiance=FILL_RADIANCE, spp=spp)
     passes = render_passes(load_scene(scene_dict), names, kinds, spp, seed)
     sat, _ = _satellite_rgb(passes)
     lin = sat
-    if earth:
+    if show_earth:
         ground, _ = _earth_rgb(passes, g, rmap)
         lin = lin + ground
     return Panel(label, camera, passes, srgb8(lin), visible_diodes(config, camera, passes))
@@ -382,12 +384,12 @@ def _arrow(ax, camera, vec_body, length_m, colour, text, fs, dashed=False, dx=0.
             ha="left" if right else "right", va="center", path_effects=stroke)
 
 
-def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_map=None, resolution=(960, 540),
+def view_picture(config, path_png, view_epoch_, *, close_up=False, earth=None, resolution=(960, 540),
                  spp=64, seed=0):
     """Render and annotate the view; write a PNG of exactly ``resolution`` pixels and return its :class:`Panel` list.
 
     ``config``: a :class:`SatelliteConfig` or a name; ``view_epoch_``: a :class:`ViewEpoch`;
-    ``reflectivity_map``: a :class:`ReflectivityMap` (default TOMS 2005), shown on the Earth with a
+    ``earth``: a :class:`simcore.environment.earth.Earth` (default the TOMS 2005 Earth), its map shown with a
     colour bar; ``close_up`` draws the satellite alone from four sides (:func:`close_up_framing`).
     """
     from matplotlib import patheffects
@@ -398,14 +400,15 @@ def view_picture(config, path_png, view_epoch_, *, close_up=False, reflectivity_
 
     if not isinstance(config, SatelliteConfig):
         config = SatelliteConfig.load(config)
-    rmap = named_map("toms2005") if reflectivity_map is None else reflectivity_map
+    earth = Earth() if earth is None else earth
+    rmap = earth.map
     g = view_epoch_.geometry
     width, height = int(resolution[0]), int(resolution[1])
     if close_up:
         cams = close_up_cameras(width, height, *close_up_framing(config))
     else:
         cams = {"": wide_camera(g, width, height)}
-    panels = [_render_panel(config, g, cam, rmap, not close_up, spp, seed, label) for label, cam in cams.items()]
+    panels = [_render_panel(config, g, cam, earth, not close_up, spp, seed, label) for label, cam in cams.items()]
 
     dpi = 100.0
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor="black")

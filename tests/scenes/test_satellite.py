@@ -67,8 +67,8 @@ def test_picture_scene_takes_the_satellite_and_an_earth(sat):
     assert scene["earth"]["radius"] == 6.3e6
     assert {f"diode_{k}" for k in range(14)} <= set(names) and "body" in kinds
     assert sat.display_parts is sat.display_parts and set(names) == {"earth"} | set(sat.display_parts)
-    with pytest.raises(ValueError, match="not both"):
-        build_scene(sat, resolution=(4, 4), spp=1, earth=Earth(m), reflectivity_map=m)
+    with pytest.raises(TypeError, match="Earth"):
+        build_scene(sat, resolution=(4, 4), spp=1, earth=m)      # a map is not an Earth: one way to give it
 
 
 def _rotations(n, seed):
