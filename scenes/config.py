@@ -32,7 +32,6 @@ from simcore.shapes.aperture import EQ415_CUTOFF_DEG, CircularWell, WellAperture
 from simcore.constants import BPW34_AREA_M2
 from simcore.shapes.occlusion import convex_hull
 from simcore.shapes.window import INDEX_RANGE, Window
-from simcore.errors import InvalidInputError
 from scenes.declared import MM, ConfigError, body_none as _flag, check_keys, diode_type, unit_normal, vector3
 from scenes.materials import DEFAULT as DEFAULT_MATERIAL, check_material
 from scenes.parts import build_part, validate_parts

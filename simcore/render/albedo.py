@@ -50,7 +50,7 @@ class EarthAlbedo:
     def _albedo_kernel(self, a):
         dr, mi = self._dr, self._mi
         a = self._with_indices(a)
-        task, j = a.task, a.j
+        j = a.j
         B = _N_T * _N_P
         h = j >> 1
         key = self._col(a, "key")

@@ -23,7 +23,7 @@ class DirectSun:
     def _direct_kernel(self, a):
         dr, mi = self._dr, self._mi
         a = self._with_indices(a)
-        task, j = a.task, a.j
+        j = a.j
         # Strata: the 2 m^2 diamonds (squares turned 45 deg) around the points (k, l) / 2m of
         # the unit torus with k + l even, so that the aperture walls' edges, parallel to the
         # diode's sides, cut many strata obliquely instead of one row of them.

@@ -16,7 +16,7 @@ class ApertureSplit:
         geometry: the opening shifted by -h tan along each wall axis), and its area fraction,
         the lit fraction. ``key``: "ap" (the split's and the probes' rectangle) or "ap_hint" (the albedo
         proposal's)."""
-        dr, mi = self._dr, self._mi
+        dr = self._dr
         fr = [self._vec(a, "frame", k) for k in range(3)]
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)
         rims = [self._col(a, key, k) for k in range(8)]  # half diode; half opening and height of the lower and top rims

@@ -34,7 +34,7 @@ class CoverGlass:
         over s and p of that term (a polarisation by its share of the partial sum, then k from its truncated
         geometric law by inversion) and the weight is the partial sum (mean over s and p): unbiased, and
         exact whatever k is drawn when nothing shades the window. Tasks without a window: (o, 1, 0, False)."""
-        dr, mi = self._dr, self._mi
+        dr = self._dr
         n_i, th, gap, hx, hy, alpha, sx, sy, has = (self._col(a, "win", i) for i in range(9))
         fr = [self._vec(a, "frame", k) for k in range(3)]
         du, dv, dn = dr.dot(fr[0], d), dr.dot(fr[1], d), dr.dot(fr[2], d)

@@ -18,7 +18,7 @@ from simcore import cli
 from simcore.pipeline.check import Z_QUARTILE, normal_scores
 from simcore.pipeline.options import RunOptions
 from simcore.pipeline.run import PreparedRun
-from simcore.pipeline.runfile import build_dataset, check_run
+from simcore.pipeline.runfile import build_dataset
 from simcore.render import DiodeSurfaces, Renderer
 
 START, SPAN_S = "2016-03-20T12:00:00", 600.0
