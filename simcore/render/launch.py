@@ -267,35 +267,21 @@ class Launcher:
 
     def _run(self, kernel, lanes, *args, sums=False):
         """Return ``kernel(lanes, *args)`` (a Dr.Jit array), the direct, albedo and proposal kernels replayed from a
-        ``drjit.freeze`` recording: traced once per layout of their inputs, then launched without tracing again
-        (docs/renderer.md, "Why replaying a recording is sound"). ``sums``: return the values' sums per packet
-        instead (:meth:`_packet_sums`, in the same recording; a kernel is always launched one way or the other)."""
+        ``drjit.freeze`` recording (:meth:`_replay`): traced once per layout of their inputs, then launched without
+        tracing again (docs/renderer.md, "Why replaying a recording is sound"). ``sums``: return the values' sums per
+        packet instead (:meth:`_packet_sums`, in the same recording; a kernel is always launched one way or the
+        other)."""
         if kernel.__name__ == "_reflected_kernel":
             out = kernel(lanes, *args)
             return self._packet_sums(lanes, out) if sums else out
-        if self.variant not in _FREEZE_VARIANTS:
-            out = _anchored(self._dr, lanes, kernel(lanes, *args))
-            return self._packet_sums(lanes, out) if sums else out
-        frozen = self._frozen.get(kernel.__name__)
-        if frozen is None:
-            dr = self._dr
-            # Weak references to the renderer: the wrappers it holds must not hold it, or it would die only in the
-            # cycle collector, at any time, possibly inside another recording, where releasing its numpy-backed
-            # arrays aborts the process (Dr.Jit 1.5: "enqueue_host_func(): this function cannot be recorded!").
-            kernel_ref, state_ref = weakref.WeakMethod(kernel), weakref.WeakMethod(self._kernel_state)
-            sums_ref = weakref.WeakMethod(self._packet_sums)
+        return self._replay(kernel.__name__, self._launch, kernel.__name__, sums, lanes, *args)
 
-            def anchored(lanes, *args):
-                # a recording of a kernel folded to a constant would hand back a constant of the recorded launch's
-                # size: anchored, it is a kernel whose size is the lanes'
-                out = _anchored(dr, lanes, kernel_ref()(lanes, *args))
-                return sums_ref()(lanes, out) if sums else out
-            frozen = self._frozen[kernel.__name__] = dr.freeze(
-                anchored, state_fn=lambda *a, **k: state_ref()(*a, **k))
-        # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
-        # arrays, released inside the frozen call, would abort the process as above.
-        with _no_cycle_collection(), _llvm.FROZEN_CALLS:    # (see _llvm.FROZEN_CALLS: another thread's Dr.Jit work)
-            return frozen(lanes, *args)
+    def _launch(self, name, sums, lanes, *args):
+        """Return kernel ``name``'s values (or their sums per packet: ``sums``) on ``lanes`` (:meth:`_run`)."""
+        # a recording of a kernel folded to a constant would hand back a constant of the recorded launch's size:
+        # anchored, it is a kernel whose size is the lanes'
+        out = _anchored(self._dr, lanes, getattr(self, name)(lanes, *args))
+        return self._packet_sums(lanes, out) if sums else out
 
     def _packet_sums(self, a, vals):
         """Return (3,) float64 Dr.Jit arrays, one value per packet of ``_PACKET`` lanes of :meth:`_trace`'s lanes
@@ -411,19 +397,36 @@ class Launcher:
         return np.stack([np.add.reduceat(p, starts) for p in per])
 
     def _trace_tasks(self, kernel, t, n_points):
-        """Return ``kernel(lanes, n_points)`` (T, n_points) for the tasks ``t`` in launches of bounded size."""
+        """Yield (task slice, ``kernel(lanes, n_points)`` as a Dr.Jit array of the slice's tasks x ``n_points``
+        values) for the tasks ``t`` (at least 2) in launches of bounded size."""
         T = len(t["key"])
-        if T < 2:
-            return self._trace_tasks(kernel, _pad2(t), n_points)[:T]
+        if T < 2:                                 # a 1-element array would be baked in as a literal
+            raise ValueError("_trace_tasks needs at least 2 tasks (pad them: _pad2)")
         t = dict(t, **self._tables(t))
         per = max(2, _MAX_LANES // n_points)
         n = -(-T // per)
         edges = np.linspace(0, T, n + 1).round().astype(int)
-        out = []
         for a, b in zip(edges[:-1], edges[1:]):
-            lanes = self._lanes(_take(t, slice(a, b)), (b - a) * n_points)
-            out.append(self._run(kernel, lanes, n_points).numpy().reshape(b - a, n_points))
-        return np.concatenate(out)
+            yield slice(a, b), self._run(kernel, self._lanes(_take(t, slice(a, b)), (b - a) * n_points), n_points)
+
+    def _replay(self, name, method, *args):
+        """Return ``method(*args)`` (a method of the renderer that computes on Dr.Jit arrays) replayed from its
+        ``drjit.freeze`` recording ``name`` on the variants that record (``_FREEZE_VARIANTS``); traced at each call
+        on the others."""
+        if self.variant not in _FREEZE_VARIANTS:
+            return method(*args)
+        frozen = self._frozen.get(name)
+        if frozen is None:
+            # Weak references to the renderer: the wrappers it holds must not hold it, or it would die only in the
+            # cycle collector, at any time, possibly inside another recording, where releasing its numpy-backed
+            # arrays aborts the process (Dr.Jit 1.5: "enqueue_host_func(): this function cannot be recorded!").
+            method_ref, state_ref = weakref.WeakMethod(method), weakref.WeakMethod(self._kernel_state)
+            frozen = self._frozen[name] = self._dr.freeze(lambda *a: method_ref()(*a),
+                                                          state_fn=lambda *a, **k: state_ref()(*a, **k))
+        # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
+        # arrays, released inside the frozen call, would abort the process as above.
+        with _no_cycle_collection(), _llvm.FROZEN_CALLS:    # (see _llvm.FROZEN_CALLS: another thread's Dr.Jit work)
+            return frozen(*args)
 
 
 _GC_GUARD = threading.Lock()
