@@ -109,7 +109,8 @@ class _Lanes:
     float32 array ``f`` (T rows of ``nf`` columns) and their integer fields in one uint32 array ``u`` (``nu``
     columns), ``layout`` naming the columns ((field, first column, width, in u), ...); ``tables`` the per-task
     tables (``_TABLES``), the renderer's own (reflectivity map, visibility table) and the task of each packet of
-    lanes; ``lane`` the lanes' counter 0 .. n - 1 (``packet_lane``: the packets', with ``packet``); ``scene`` the occluders (or None); ``task`` and ``j``, the lane's
+    lanes; ``lane`` the lanes' counter 0 .. n - 1 (with ``packet``, ``packet_lane`` and ``task_lane`` count the
+    packets and the tasks); ``scene`` the occluders (or None); ``task`` and ``j``, the lane's
     task and sample index, are found in the kernel (Launcher._with_indices).
 
     Packed so that a launch costs two uploads (:func:`simcore._llvm.host_array`, ~24 us each) rather than one per
@@ -128,6 +129,7 @@ class _Lanes:
     task: object = None
     j: object = None
     packet_lane: object = None
+    task_lane: object = None
 
     def column(self, name):
         """Return (first column, width, in u) of field ``name``."""
@@ -258,22 +260,22 @@ class Launcher:
         # its launch size (_run)
         lane = dr.arange(mi.UInt32, n_lanes)
         dr.make_opaque(lane)
-        packet_lane = None
-        if packet is not None:
-            packet_lane = dr.arange(mi.UInt32, len(packet))    # (the per-packet sums' launch size, _packet_sums)
-            dr.make_opaque(packet_lane)
+        counters = {}
+        if packet is not None:                          # (the launch sizes of the task sums, _task_sums)
+            counters = dict(packet_lane=dr.arange(mi.UInt32, len(packet)), task_lane=dr.arange(mi.UInt32, T))
+            dr.make_opaque(*counters.values())
         return _Lanes(host_wrap(mi.Float, f), host_wrap(mi.UInt32, u), tables, tuple(layout), nf, nu, lane, self._scene,
-                      packet_lane=packet_lane)
+                      **counters)
 
     def _run(self, kernel, lanes, *args, sums=False):
         """Return ``kernel(lanes, *args)`` (a Dr.Jit array), the direct, albedo and proposal kernels replayed from a
         ``drjit.freeze`` recording (:meth:`_replay`): traced once per layout of their inputs, then launched without
         tracing again (docs/renderer.md, "Why replaying a recording is sound"). ``sums``: return the values' sums per
-        packet instead (:meth:`_packet_sums`, in the same recording; a kernel is always launched one way or the
+        task instead (:meth:`_task_sums`, in the same recording; a kernel is always launched one way or the
         other)."""
         if kernel.__name__ == "_reflected_kernel":
             out = kernel(lanes, *args)
-            return self._packet_sums(lanes, out) if sums else out
+            return self._task_sums(lanes, out) if sums else out
         return self._replay(kernel.__name__, self._launch, kernel.__name__, sums, lanes, *args)
 
     def _launch(self, name, sums, lanes, *args):
@@ -281,22 +283,23 @@ class Launcher:
         # a recording of a kernel folded to a constant would hand back a constant of the recorded launch's size:
         # anchored, it is a kernel whose size is the lanes'
         out = _anchored(self._dr, lanes, getattr(self, name)(lanes, *args))
-        return self._packet_sums(lanes, out) if sums else out
+        return self._task_sums(lanes, out) if sums else out
 
-    def _packet_sums(self, a, vals):
-        """Return (3,) float64 Dr.Jit arrays, one value per packet of ``_PACKET`` lanes of :meth:`_trace`'s lanes
-        ``a``: over the packet's strata (a, b) (lanes 2h, 2h + 1 of its task, ``vals`` the lanes' values) within the
-        task's ``count`` samples, the sums of a + b, (a - b)^2 and (a - b)^4, added stratum by stratum in order.
+    def _task_sums(self, a, vals):
+        """Return (3,) float64 Dr.Jit arrays, one value per task of :meth:`_trace`'s lanes ``a``: over the task's strata
+        (a, b) (lanes 2h, 2h + 1 of it, ``vals`` the lanes' values) within its ``count`` samples, the sums of a + b,
+        (a - b)^2 and (a - b)^4: added stratum by stratum within each packet of ``_PACKET`` lanes, then packet by
+        packet, in order (a packet holds one task's lanes: the sums do not depend on the launch).
 
-        The per-task sums of :func:`simcore.render.sampling._task_mean_var` reduced on the device, so that the host
-        reads 1/16 of the values (a packet holds one task's lanes: its sums do not depend on the launch)."""
+        The sums of :func:`simcore.render.sampling._task_mean_var`, reduced on the device, so that the host reads
+        three values a task instead of one a lane."""
         dr, mi = self._dr, self._mi
         f64 = mi.Float64
         p = a.packet_lane
-        a = replace(a, task=dr.gather(mi.UInt32, a.tables["packet"], p))
+        pa = replace(a, task=dr.gather(mi.UInt32, a.tables["packet"], p))
         lane0 = p * _PACKET
-        j0 = lane0 - self._col(a, "first")             # the packet's first sample index in its task
-        count = self._col(a, "count")
+        j0 = lane0 - self._col(pa, "first")            # the packet's first sample index in its task
+        count = self._col(pa, "count")
         s = d2 = d4 = f64(0.0)
         for i in range(0, _PACKET, 2):
             x = f64(dr.gather(mi.Float, vals, lane0 + i))
@@ -307,7 +310,15 @@ class Launcher:
             s = s + dr.select(ok, x + y, 0.0)
             d2 = d2 + dr.select(ok, dd, 0.0)
             d4 = d4 + dr.select(ok, dd * dd, 0.0)
-        return s, d2, d4
+        dr.eval(s, d2, d4)
+        ta = replace(a, task=a.task_lane)
+        p0 = self._col(ta, "first") // _PACKET         # the task's first packet and its number of packets
+        n = (self._col(ta, "count") + (_PACKET - 1)) // _PACKET
+
+        def add(i, *acc):
+            return (i + 1, *[x + dr.gather(f64, y, p0 + i) for x, y in zip(acc, (s, d2, d4))])
+        _, *sums = dr.while_loop((mi.UInt32(0), f64(0.0), f64(0.0), f64(0.0)), lambda i, *acc: i < n, add)
+        return tuple(sums)
 
     def _col(self, a, name, i=0):
         """Return column ``i`` of field ``name`` of the lanes' tasks (:class:`_Lanes`): mi.Float, or mi.UInt32 for
@@ -376,9 +387,9 @@ class Launcher:
 
     def _trace(self, kernel, t, counts):
         """Return (3, T) float64: per task of ``t``, over its strata (a, b) (lanes 2h, 2h + 1 of its ``counts`` (T,)
-        samples, ``kernel``'s values), the sums of a + b, (a - b)^2 and (a - b)^4 (:meth:`_packet_sums`: added in
-        order within each packet, then the packets' sums by numpy). The lanes are laid out task after task, each
-        task's first lane on a multiple of ``_PACKET`` (its lanes past ``counts`` are traced but not summed)."""
+        samples, ``kernel``'s values), the sums of a + b, (a - b)^2 and (a - b)^4 (:meth:`_task_sums`). The lanes are
+        laid out task after task, each task's first lane on a multiple of ``_PACKET`` (its lanes past ``counts`` are
+        traced but not summed)."""
         T = len(counts)
         if T < 2:                                 # a 1-element array would be baked in as a literal
             t = _pad2(t)
@@ -390,11 +401,8 @@ class Launcher:
             if sl.stop - sl.start < 2:
                 sub = _pad2(sub)
             sums = self._run(kernel, self._lanes(sub, len(packet) * _PACKET, packet), sums=True)
-            out.append([s.numpy() for s in sums])
-        per = [p[0] if len(out) == 1 else np.concatenate(p) for p in zip(*out)]
-        n_packets = padded // _PACKET
-        starts = np.cumsum(n_packets) - n_packets
-        return np.stack([np.add.reduceat(p, starts) for p in per])
+            out.append(np.stack([s.numpy()[:sl.stop - sl.start] for s in sums]))
+        return out[0] if len(out) == 1 else np.concatenate(out, axis=1)
 
     def _trace_tasks(self, kernel, t, n_points):
         """Yield (task slice, ``kernel(lanes, n_points)`` as a Dr.Jit array of the slice's tasks x ``n_points``

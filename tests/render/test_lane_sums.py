@@ -1,4 +1,4 @@
-"""The per-task sums that the device reduces from the lanes (Launcher._trace, Launcher._packet_sums).
+"""The per-task sums that the device reduces from the lanes (Launcher._trace, Launcher._task_sums).
 
 The oracle: numpy's float64 sums over the strata (a, b) of the same lane values, computed on the host from the
 lane formula (exact in float32 on both sides), with the lanes past each task's count left out."""
