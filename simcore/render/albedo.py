@@ -377,8 +377,9 @@ def corner_reach(tedge, xmax, d_over_r):
     # range to the near-side point, in Earth radii, and its ground angle from the sub-satellite point
     s = dd * cos_t - np.sqrt(np.clip(1.0 - (dd * sin_t) ** 2, 0.0, None))
     g = np.arctan2(s * sin_t, dd - s * cos_t)
-    lo = np.concatenate([g[:, :1], g[:, :-1]], axis=1)
-    hi = np.concatenate([g[:, 1:], g[:, -1:]], axis=1)
+    cos_g, sin_g = np.cos(g), np.sin(g)
+    lo = lambda v: np.concatenate([v[:, :1], v[:, :-1]], axis=1)  # noqa: E731  (the ring inside, and outside)
+    hi = lambda v: np.concatenate([v[:, 1:], v[:, -1:]], axis=1)  # noqa: E731
     cos_p = np.cos(2.0 * np.pi / _N_P)
-    far = lambda g2: np.arccos(np.clip(np.cos(g) * np.cos(g2) + np.sin(g) * np.sin(g2) * cos_p, -1.0, 1.0))  # noqa: E731
-    return np.maximum(far(lo), far(hi))
+    far = lambda c2, s2: np.arccos(np.clip(cos_g * c2 + sin_g * s2 * cos_p, -1.0, 1.0))  # noqa: E731
+    return np.maximum(far(lo(cos_g), lo(sin_g)), far(hi(cos_g), hi(sin_g)))
