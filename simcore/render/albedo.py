@@ -238,7 +238,7 @@ class EarthAlbedo:
         cap's, by ring); ``bins`` and ``tasks`` count the bins and the tasks.
 
         A bin's weight is its corners' largest; the PMF mixes the weights, normalised, with ``_DEFENSIVE`` of
-        ``omega`` (``omega`` alone for a task without weight); the CDF is its running sum in float64 over the
+        ``omega`` (``omega`` alone for a task without weight, or with a NaN); the CDF is its running sum in float64 over the
         task's bins, divided by the last. Computed as numpy would, bit for bit: float32 weights summed pairwise as
         ``numpy.sum`` sums 512 values (blocks of 128 in eight interleaved partial sums), the running sum in order."""
         dr, mi = self._dr, self._mi
@@ -246,8 +246,11 @@ class EarthAlbedo:
         task, b = bins // B, bins % B
         bt, bp = b // _N_P, b % _N_P
         c = task * ((_N_T + 1) * NP1) + bt * NP1 + bp
-        g = lambda i: dr.gather(mi.Float, f, i)  # noqa: E731
-        w = dr.maximum(dr.maximum(g(c), g(c + NP1)), dr.maximum(g(c + 1), g(c + (NP1 + 1))))
+        v = [dr.gather(mi.Float, f, c + k) for k in (0, NP1, 1, NP1 + 1)]
+        w = dr.maximum(dr.maximum(v[0], v[1]), dr.maximum(v[2], v[3]))
+        # a NaN corner makes its bin's weight NaN, as numpy.maximum does, so that its task's total is NaN and the task
+        # falls back on omega alone (drjit.maximum keeps NaN on the CPU, LLVM's fmaximum; CUDA's max.f32 drops it)
+        w = dr.select(dr.isnan(v[0]) | dr.isnan(v[1]) | dr.isnan(v[2]) | dr.isnan(v[3]), np.nan, w)
         dr.eval(w)
         # the weights' total per task, in numpy's pairwise order for 512 values
         base = tasks * B
