@@ -92,11 +92,8 @@ class Rounds:
         t["mode"] = mode
         t["m"] = _strata_param(kind != _ALBEDO, lanes)
         mean, var, var2 = _task_mean_var(self._trace(kernel, t, lanes), lanes)
-        est, v, v2, nr = np.zeros(T), np.zeros(T), np.zeros(T), np.zeros(T)
-        np.add.at(est, idx, mean)
-        np.add.at(v, idx, var)
-        np.add.at(v2, idx, var2)
-        np.add.at(nr, idx, lanes)
+        # each task's groups added in order (numpy.bincount, as numpy.add.at on zeros but ~10x faster)
+        est, v, v2, nr = (np.bincount(idx, x, minlength=T) for x in (mean, var, var2, lanes))
         with np.errstate(divide="ignore", invalid="ignore"):
             dof = np.where(v2 > 0, v * v / np.where(v2 > 0, v2, 1.0), np.inf)
         return plan.fac * est, plan.fac * np.sqrt(v), dof, nr
