@@ -6,7 +6,8 @@ from dataclasses import replace
 import numpy as np
 
 from simcore.radiometry import glint as _glint
-from simcore.render.launch import _DrOps
+from simcore._llvm import host_array
+from simcore.render.launch import _DrOps, _pad2
 from simcore.render.probes import _VIS_NP, _VIS_NT
 from simcore.render.sampling import _ALBEDO
 
@@ -195,7 +196,12 @@ class EarthAlbedo:
         return dr.select(ok, f, 0.0)
 
     def _albedo_proposal(self, t):
-        """Return per-task cap basis and bin CDF/PMF for the albedo sampling of tasks ``t``."""
+        """Return per-task cap basis and bin CDF/PMF for the albedo sampling of tasks ``t``: numpy fields, and
+        ``pmf`` and ``cdf`` as Dr.Jit arrays (float32, a row of ``_N_T _N_P`` bins per task, rows in ``t``'s order;
+        :meth:`_proposal_tables`)."""
+        dr, mi = self._dr, self._mi
+        T = len(t["k"])
+        t = _pad2(t)
         R = self.earth_radius_m
         dist, w, e1, e2, xmax = cap_basis(t["earth"], R)
         # Radial bin edges between equal solid angle and equal central angle g from the
@@ -212,25 +218,69 @@ class EarthAlbedo:
         prop = dict(w=w, e1=e1, e2=e2, xmax=xmax, tedge=tedge, margin=margin)
         n_points = (_N_T + 1) * (_N_P + 1)
         tlevel = reach_level(corner_reach(tedge, xmax, dist / R), self.reflectivity.shape[0])
-        f = self._trace_tasks(self._proposal_kernel, dict(t, tlevel=tlevel.astype(np.float32), **prop), n_points)
-        fc = f.reshape(-1, _N_T + 1, _N_P + 1)
-        corner = np.maximum(fc[:, :-1, :-1], fc[:, 1:, :-1])
-        np.maximum(corner, np.maximum(fc[:, :-1, 1:], fc[:, 1:, 1:]), out=corner)
-        wbin = corner.reshape(len(f), -1)
-        tot = wbin.sum(axis=1, keepdims=True)
         omega = np.diff(tedge, axis=1) / _N_P                   # (T, N_T): a bin's solid angle / the cap's
-        # (1 - D) wbin / tot + D omega where the proposal has weight, omega alone where it has none
-        pmf = np.empty(wbin.shape)
-        a = (1 - _DEFENSIVE) * wbin
-        a /= np.where(tot > 0, tot, 1.0)
-        np.add(a.reshape(-1, _N_T, _N_P), (_DEFENSIVE * omega)[:, :, None], out=pmf.reshape(-1, _N_T, _N_P))
-        empty = ~(tot[:, 0] > 0)                            # (NaN too: the uniform fallback, as before)
-        if empty.any():
-            pmf[empty] = np.repeat(omega[empty], _N_P, axis=1)
-        cdf = np.cumsum(pmf, axis=1)
-        cdf /= cdf[:, -1:]
-        cdf[:, -1] = 1.0
-        return dict(prop, pmf=pmf.astype(np.float32), cdf=cdf.astype(np.float32))
+        B = _N_T * _N_P
+        pmf, cdf = dr.zeros(mi.Float, len(tedge) * B), dr.zeros(mi.Float, len(tedge) * B)
+        dr.make_opaque(pmf, cdf)
+        for sl, f in self._trace_tasks(self._proposal_kernel, dict(t, tlevel=tlevel.astype(np.float32), **prop),
+                                       n_points):
+            n = sl.stop - sl.start
+            bins, tasks, first = dr.arange(mi.UInt32, n * B), dr.arange(mi.UInt32, n), mi.UInt32(sl.start, sl.start)
+            dr.make_opaque(bins, tasks, first)
+            self._replay("_proposal_tables", self._proposal_tables, f, host_array(mi.Float64, omega[sl]), bins, tasks,
+                         first, pmf, cdf)
+        return dict({k: v[:T] for k, v in prop.items()}, pmf=pmf, cdf=cdf)
+
+    def _proposal_tables(self, f, omega, bins, tasks, first, pmf, cdf):
+        """Write the proposal's PMF and CDF (float32) of tasks ``first[0]`` .. into ``pmf`` and ``cdf`` (rows of
+        ``_N_T _N_P`` bins), from ``f``, the proposal's weights at the bins' corners (:meth:`_proposal_kernel`,
+        ``(_N_T + 1) (_N_P + 1)`` per task), and ``omega`` (float64, ``_N_T`` per task: a bin's solid angle / the
+        cap's, by ring); ``bins`` and ``tasks`` count the bins and the tasks.
+
+        A bin's weight is its corners' largest; the PMF mixes the weights, normalised, with ``_DEFENSIVE`` of
+        ``omega`` (``omega`` alone for a task without weight, or with a NaN); the CDF is its running sum in float64 over the
+        task's bins, divided by the last. Computed as numpy would, bit for bit: float32 weights summed pairwise as
+        ``numpy.sum`` sums 512 values (blocks of 128 in eight interleaved partial sums), the running sum in order."""
+        dr, mi = self._dr, self._mi
+        B, NP1 = _N_T * _N_P, _N_P + 1
+        task, b = bins // B, bins % B
+        bt, bp = b // _N_P, b % _N_P
+        c = task * ((_N_T + 1) * NP1) + bt * NP1 + bp
+        v = [dr.gather(mi.Float, f, c + k) for k in (0, NP1, 1, NP1 + 1)]
+        w = dr.maximum(dr.maximum(v[0], v[1]), dr.maximum(v[2], v[3]))
+        # a NaN corner makes its bin's weight NaN, as numpy.maximum does, so that its task's total is NaN and the task
+        # falls back on omega alone (drjit.maximum keeps NaN on the CPU, LLVM's fmaximum; CUDA's max.f32 drops it)
+        w = dr.select(dr.isnan(v[0]) | dr.isnan(v[1]) | dr.isnan(v[2]) | dr.isnan(v[3]), np.nan, w)
+        dr.eval(w)
+        # the weights' total per task, in numpy's pairwise order for 512 values
+        base = tasks * B
+        blocks = []
+        for blk in range(B // 128):
+            k0 = base + blk * 128
+            r = [dr.gather(mi.Float, w, k0 + j) for j in range(8)]
+            _, *r = dr.while_loop((mi.UInt32(1), *r), lambda i, *r: i < 16,
+                                  lambda i, *r: (i + 1, *[r[j] + dr.gather(mi.Float, w, k0 + i * 8 + j)
+                                                          for j in range(8)]))
+            blocks.append(((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7])))
+        while len(blocks) > 1:
+            blocks = [blocks[i] + blocks[i + 1] for i in range(0, len(blocks), 2)]
+        tot = dr.gather(mi.Float, blocks[0], task)
+        om = dr.gather(mi.Float64, omega, task * _N_T + bt)
+        p = dr.select(tot > 0, mi.Float64(w * (1 - _DEFENSIVE) / dr.select(tot > 0, tot, 1.0)) + _DEFENSIVE * om, om)
+        dr.eval(p)
+        at = (dr.gather(mi.UInt32, first, mi.UInt32(0)) + task) * B + b
+        dr.scatter(pmf, mi.Float(p), at)
+        # the running sum, twice: its total, then each bin's share of it
+        at0 = (dr.gather(mi.UInt32, first, mi.UInt32(0)) + tasks) * B
+        cond = lambda i, s: i < B  # noqa: E731
+        _, total = dr.while_loop((mi.UInt32(0), mi.Float64(0.0)), cond,
+                                 lambda i, s: (i + 1, s + dr.gather(mi.Float64, p, base + i)))
+
+        def step(i, s):
+            s = s + dr.gather(mi.Float64, p, base + i)
+            dr.scatter(cdf, dr.select(i == B - 1, 1.0, mi.Float(s / total)), at0 + i)
+            return i + 1, s
+        dr.while_loop((mi.UInt32(0), mi.Float64(0.0)), cond, step)
 
     def _albedo_rounds(self, e_, k_, g_, sun, earth, rot, E, plan, out, n_used):
         """Render the albedo of tasks (epochs ``e_``, diodes ``k_``) into ``out`` by the :class:`Sampling` ``plan``
@@ -238,7 +288,8 @@ class EarthAlbedo:
         base = self._tasks(e_, k_, sun, earth, None)
         base["rot"] = rot[e_]
         base.update(self._albedo_proposal(dict(base, key=np.zeros(len(e_), np.uint32))))
-        base.update(self._tables(base))
+        # (pmf and cdf are on the device already, one row a task of base)
+        base.update(self._tables({k: v for k, v in base.items() if k not in ("pmf", "cdf")}))
         m, se, dof, n = self._rounds(self._albedo_kernel, base, _ALBEDO, g_, k_, replace(plan, fac=E[e_]))
         out["am"][e_, k_], out["ase"][e_, k_], out["adof"][e_, k_], n_used[e_, k_] = m, se, dof, n
 
@@ -329,8 +380,9 @@ def corner_reach(tedge, xmax, d_over_r):
     # range to the near-side point, in Earth radii, and its ground angle from the sub-satellite point
     s = dd * cos_t - np.sqrt(np.clip(1.0 - (dd * sin_t) ** 2, 0.0, None))
     g = np.arctan2(s * sin_t, dd - s * cos_t)
-    lo = np.concatenate([g[:, :1], g[:, :-1]], axis=1)
-    hi = np.concatenate([g[:, 1:], g[:, -1:]], axis=1)
+    cos_g, sin_g = np.cos(g), np.sin(g)
+    lo = lambda v: np.concatenate([v[:, :1], v[:, :-1]], axis=1)  # noqa: E731  (the ring inside, and outside)
+    hi = lambda v: np.concatenate([v[:, 1:], v[:, -1:]], axis=1)  # noqa: E731
     cos_p = np.cos(2.0 * np.pi / _N_P)
-    far = lambda g2: np.arccos(np.clip(np.cos(g) * np.cos(g2) + np.sin(g) * np.sin(g2) * cos_p, -1.0, 1.0))  # noqa: E731
-    return np.maximum(far(lo), far(hi))
+    far = lambda c2, s2: np.arccos(np.clip(cos_g * c2 + sin_g * s2 * cos_p, -1.0, 1.0))  # noqa: E731
+    return np.maximum(far(lo(cos_g), lo(sin_g)), far(hi(cos_g), hi(sin_g)))

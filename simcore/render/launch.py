@@ -109,7 +109,8 @@ class _Lanes:
     float32 array ``f`` (T rows of ``nf`` columns) and their integer fields in one uint32 array ``u`` (``nu``
     columns), ``layout`` naming the columns ((field, first column, width, in u), ...); ``tables`` the per-task
     tables (``_TABLES``), the renderer's own (reflectivity map, visibility table) and the task of each packet of
-    lanes; ``lane`` the lanes' counter 0 .. n - 1; ``scene`` the occluders (or None); ``task`` and ``j``, the lane's
+    lanes; ``lane`` the lanes' counter 0 .. n - 1 (with ``packet``, ``packet_lane`` and ``task_lane`` count the
+    packets and the tasks); ``scene`` the occluders (or None); ``task`` and ``j``, the lane's
     task and sample index, are found in the kernel (Launcher._with_indices).
 
     Packed so that a launch costs two uploads (:func:`simcore._llvm.host_array`, ~24 us each) rather than one per
@@ -127,6 +128,8 @@ class _Lanes:
     scene: object = None
     task: object = None
     j: object = None
+    packet_lane: object = None
+    task_lane: object = None
 
     def column(self, name):
         """Return (first column, width, in u) of field ``name``."""
@@ -257,34 +260,65 @@ class Launcher:
         # its launch size (_run)
         lane = dr.arange(mi.UInt32, n_lanes)
         dr.make_opaque(lane)
-        return _Lanes(host_wrap(mi.Float, f), host_wrap(mi.UInt32, u), tables, tuple(layout), nf, nu, lane, self._scene)
+        counters = {}
+        if packet is not None:                          # (the launch sizes of the task sums, _task_sums)
+            counters = dict(packet_lane=dr.arange(mi.UInt32, len(packet)), task_lane=dr.arange(mi.UInt32, T))
+            dr.make_opaque(*counters.values())
+        return _Lanes(host_wrap(mi.Float, f), host_wrap(mi.UInt32, u), tables, tuple(layout), nf, nu, lane, self._scene,
+                      **counters)
 
-    def _run(self, kernel, lanes, *args):
+    def _run(self, kernel, lanes, *args, sums=False):
         """Return ``kernel(lanes, *args)`` (a Dr.Jit array), the direct, albedo and proposal kernels replayed from a
-        ``drjit.freeze`` recording: traced once per layout of their inputs, then launched without tracing again
-        (docs/renderer.md, "Why replaying a recording is sound")."""
+        ``drjit.freeze`` recording (:meth:`_replay`): traced once per layout of their inputs, then launched without
+        tracing again (docs/renderer.md, "Why replaying a recording is sound"). ``sums``: return the values' sums per
+        task instead (:meth:`_task_sums`, in the same recording; a kernel is always launched one way or the
+        other)."""
         if kernel.__name__ == "_reflected_kernel":
-            return kernel(lanes, *args)
-        if self.variant not in _FREEZE_VARIANTS:
-            return _anchored(self._dr, lanes, kernel(lanes, *args))
-        frozen = self._frozen.get(kernel.__name__)
-        if frozen is None:
-            dr = self._dr
-            # Weak references to the renderer: the wrappers it holds must not hold it, or it would die only in the
-            # cycle collector, at any time, possibly inside another recording, where releasing its numpy-backed
-            # arrays aborts the process (Dr.Jit 1.5: "enqueue_host_func(): this function cannot be recorded!").
-            kernel_ref, state_ref = weakref.WeakMethod(kernel), weakref.WeakMethod(self._kernel_state)
+            out = kernel(lanes, *args)
+            return self._task_sums(lanes, out) if sums else out
+        return self._replay(kernel.__name__, self._launch, kernel.__name__, sums, lanes, *args)
 
-            def anchored(lanes, *args):
-                # a recording of a kernel folded to a constant would hand back a constant of the recorded launch's
-                # size: anchored, it is a kernel whose size is the lanes'
-                return _anchored(dr, lanes, kernel_ref()(lanes, *args))
-            frozen = self._frozen[kernel.__name__] = dr.freeze(
-                anchored, state_fn=lambda *a, **k: state_ref()(*a, **k))
-        # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
-        # arrays, released inside the frozen call, would abort the process as above.
-        with _no_cycle_collection(), _llvm.FROZEN_CALLS:    # (see _llvm.FROZEN_CALLS: another thread's Dr.Jit work)
-            return frozen(lanes, *args)
+    def _launch(self, name, sums, lanes, *args):
+        """Return kernel ``name``'s values (or their sums per packet: ``sums``) on ``lanes`` (:meth:`_run`)."""
+        # a recording of a kernel folded to a constant would hand back a constant of the recorded launch's size:
+        # anchored, it is a kernel whose size is the lanes'
+        out = _anchored(self._dr, lanes, getattr(self, name)(lanes, *args))
+        return self._task_sums(lanes, out) if sums else out
+
+    def _task_sums(self, a, vals):
+        """Return (3,) float64 Dr.Jit arrays, one value per task of :meth:`_trace`'s lanes ``a``: over the task's strata
+        (a, b) (lanes 2h, 2h + 1 of it, ``vals`` the lanes' values) within its ``count`` samples, the sums of a + b,
+        (a - b)^2 and (a - b)^4: added stratum by stratum within each packet of ``_PACKET`` lanes, then packet by
+        packet, in order (a packet holds one task's lanes: the sums do not depend on the launch).
+
+        The sums of :func:`simcore.render.sampling._task_mean_var`, reduced on the device, so that the host reads
+        three values a task instead of one a lane."""
+        dr, mi = self._dr, self._mi
+        f64 = mi.Float64
+        p = a.packet_lane
+        pa = replace(a, task=dr.gather(mi.UInt32, a.tables["packet"], p))
+        lane0 = p * _PACKET
+        j0 = lane0 - self._col(pa, "first")            # the packet's first sample index in its task
+        count = self._col(pa, "count")
+        s = d2 = d4 = f64(0.0)
+        for i in range(0, _PACKET, 2):
+            x = f64(dr.gather(mi.Float, vals, lane0 + i))
+            y = f64(dr.gather(mi.Float, vals, lane0 + (i + 1)))
+            ok = j0 + i < count
+            d = x - y
+            dd = d * d
+            s = s + dr.select(ok, x + y, 0.0)
+            d2 = d2 + dr.select(ok, dd, 0.0)
+            d4 = d4 + dr.select(ok, dd * dd, 0.0)
+        dr.eval(s, d2, d4)
+        ta = replace(a, task=a.task_lane)
+        p0 = self._col(ta, "first") // _PACKET         # the task's first packet and its number of packets
+        n = (self._col(ta, "count") + (_PACKET - 1)) // _PACKET
+
+        def add(i, *acc):
+            return (i + 1, *[x + dr.gather(f64, y, p0 + i) for x, y in zip(acc, (s, d2, d4))])
+        _, *sums = dr.while_loop((mi.UInt32(0), f64(0.0), f64(0.0), f64(0.0)), lambda i, *acc: i < n, add)
+        return tuple(sums)
 
     def _col(self, a, name, i=0):
         """Return column ``i`` of field ``name`` of the lanes' tasks (:class:`_Lanes`): mi.Float, or mi.UInt32 for
@@ -352,39 +386,55 @@ class Launcher:
         return replace(a, j=a.lane - self._col(a, "first"))
 
     def _trace(self, kernel, t, counts):
-        """Return the per-lane values (sum(counts),) float32 of ``kernel`` over tasks ``t`` (their lanes laid out task
-        after task, each task's first lane on a multiple of ``_PACKET``)."""
+        """Return (3, T) float64: per task of ``t``, over its strata (a, b) (lanes 2h, 2h + 1 of its ``counts`` (T,)
+        samples, ``kernel``'s values), the sums of a + b, (a - b)^2 and (a - b)^4 (:meth:`_task_sums`). The lanes are
+        laid out task after task, each task's first lane on a multiple of ``_PACKET`` (its lanes past ``counts`` are
+        traced but not summed)."""
         T = len(counts)
         if T < 2:                                 # a 1-element array would be baked in as a literal
             t = _pad2(t)
-            return self._trace(kernel, t, np.concatenate([counts, [2]]))[:int(counts.sum())]
-        # each task's lanes start on a packet boundary (the extra lanes, samples past its count, are dropped)
+            return self._trace(kernel, t, np.concatenate([counts, [2]]))[:, :T]
         padded = -(-counts // _PACKET) * _PACKET
         out = []
         for sl, packet, first in self._launches(padded):
-            sub = dict(_take(t, sl), first=first)
+            sub = dict(_take(t, sl), first=first, count=counts[sl].astype(np.uint32))
             if sl.stop - sl.start < 2:
                 sub = _pad2(sub)
-            out.append(self._run(kernel, self._lanes(sub, len(packet) * _PACKET, packet)).numpy())
-        vals = out[0] if len(out) == 1 else np.concatenate(out)
-        if np.array_equal(padded, counts):
-            return vals
-        return vals[np.repeat(np.tile([True, False], len(counts)), np.column_stack([counts, padded - counts]).ravel())]
+            sums = self._run(kernel, self._lanes(sub, len(packet) * _PACKET, packet), sums=True)
+            out.append(np.stack([s.numpy()[:sl.stop - sl.start] for s in sums]))
+        return out[0] if len(out) == 1 else np.concatenate(out, axis=1)
 
     def _trace_tasks(self, kernel, t, n_points):
-        """Return ``kernel(lanes, n_points)`` (T, n_points) for the tasks ``t`` in launches of bounded size."""
+        """Yield (task slice, ``kernel(lanes, n_points)`` as a Dr.Jit array of the slice's tasks x ``n_points``
+        values) for the tasks ``t`` (at least 2) in launches of bounded size."""
         T = len(t["key"])
-        if T < 2:
-            return self._trace_tasks(kernel, _pad2(t), n_points)[:T]
+        if T < 2:                                 # a 1-element array would be baked in as a literal
+            raise ValueError("_trace_tasks needs at least 2 tasks (pad them: _pad2)")
         t = dict(t, **self._tables(t))
         per = max(2, _MAX_LANES // n_points)
         n = -(-T // per)
         edges = np.linspace(0, T, n + 1).round().astype(int)
-        out = []
         for a, b in zip(edges[:-1], edges[1:]):
-            lanes = self._lanes(_take(t, slice(a, b)), (b - a) * n_points)
-            out.append(self._run(kernel, lanes, n_points).numpy().reshape(b - a, n_points))
-        return np.concatenate(out)
+            yield slice(a, b), self._run(kernel, self._lanes(_take(t, slice(a, b)), (b - a) * n_points), n_points)
+
+    def _replay(self, name, method, *args):
+        """Return ``method(*args)`` (a method of the renderer that computes on Dr.Jit arrays) replayed from its
+        ``drjit.freeze`` recording ``name`` on the variants that record (``_FREEZE_VARIANTS``); traced at each call
+        on the others."""
+        if self.variant not in _FREEZE_VARIANTS:
+            return method(*args)
+        frozen = self._frozen.get(name)
+        if frozen is None:
+            # Weak references to the renderer: the wrappers it holds must not hold it, or it would die only in the
+            # cycle collector, at any time, possibly inside another recording, where releasing its numpy-backed
+            # arrays aborts the process (Dr.Jit 1.5: "enqueue_host_func(): this function cannot be recorded!").
+            method_ref, state_ref = weakref.WeakMethod(method), weakref.WeakMethod(self._kernel_state)
+            frozen = self._frozen[name] = self._dr.freeze(lambda *a: method_ref()(*a),
+                                                          state_fn=lambda *a, **k: state_ref()(*a, **k))
+        # No cycle collection while recording or replaying: garbage from elsewhere holding numpy-backed Dr.Jit
+        # arrays, released inside the frozen call, would abort the process as above.
+        with _no_cycle_collection(), _llvm.FROZEN_CALLS:    # (see _llvm.FROZEN_CALLS: another thread's Dr.Jit work)
+            return frozen(*args)
 
 
 _GC_GUARD = threading.Lock()

@@ -92,11 +92,8 @@ class Rounds:
         t["mode"] = mode
         t["m"] = _strata_param(kind != _ALBEDO, lanes)
         mean, var, var2 = _task_mean_var(self._trace(kernel, t, lanes), lanes)
-        est, v, v2, nr = np.zeros(T), np.zeros(T), np.zeros(T), np.zeros(T)
-        np.add.at(est, idx, mean)
-        np.add.at(v, idx, var)
-        np.add.at(v2, idx, var2)
-        np.add.at(nr, idx, lanes)
+        # each task's groups added in order (numpy.bincount, as numpy.add.at on zeros but ~10x faster)
+        est, v, v2, nr = (np.bincount(idx, x, minlength=T) for x in (mean, var, var2, lanes))
         with np.errstate(divide="ignore", invalid="ignore"):
             dof = np.where(v2 > 0, v * v / np.where(v2 > 0, v2, 1.0), np.inf)
         return plan.fac * est, plan.fac * np.sqrt(v), dof, nr
@@ -126,21 +123,14 @@ def _strata_param(direct, counts):
     return counts / 2.0
 
 
-def _task_mean_var(vals, counts):
+def _task_mean_var(sums, counts):
     """Return the mean (T,), the variance of the mean (T,) and the sum of the squares of its strata's
-    terms (T,; for the effective degrees of freedom) of per-lane values laid out task after task
-    (``counts`` each) as strata of two samples (float64)."""
-    # per stratum (a, b): the sum a + b and the squared difference (a - b)^2, in float64; a task's m strata all
-    # have the term (a - b)^2 / (4 m^2), so its sums divide once (the same as summing lane by lane to ~1e-16)
-    first = (np.cumsum(counts) - counts) // 2
-    a, b = vals[0::2], vals[1::2]
-    d2 = np.subtract(a, b, dtype=np.float64)
-    d2 *= d2
+    terms (T,; for the effective degrees of freedom) of tasks of ``counts`` samples each taken as strata of two
+    samples (a, b), from ``sums`` (3, T): the sums of a + b, (a - b)^2 and (a - b)^4 over each task's strata
+    (:meth:`simcore.render.launch.Launcher._trace`, float64)."""
+    # a task's m strata all have the term (a - b)^2 / (4 m^2), so its sums divide once
     m = (counts // 2).astype(np.float64)
-    mean = np.add.reduceat(np.add(a, b, dtype=np.float64), first) / counts
-    var = np.add.reduceat(d2, first) / (4.0 * m * m)
-    d2 *= d2
-    return mean, var, np.add.reduceat(d2, first) / (16.0 * m ** 4)
+    return sums[0] / counts, sums[1] / (4.0 * m * m), sums[2] / (16.0 * m ** 4)
 
 
 def _shortfall(mean, se, n, rel, floor, power):

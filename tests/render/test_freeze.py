@@ -62,7 +62,7 @@ def test_frozen_kernels_equal_traced_ones_bit_for_bit(disc):
     # each kernel recorded once and replayed for every later launch (else this would compare tracing with itself);
     # the reference traced every launch (recorded nothing)
     assert {k: f.n_recordings for k, f in rend._frozen.items()} == {
-        "_direct_kernel": 1, "_albedo_kernel": 1, "_proposal_kernel": 1}
+        "_direct_kernel": 1, "_albedo_kernel": 1, "_proposal_kernel": 1, "_proposal_tables": 1}
     assert all(f.n_recordings == 0 for f in traced._frozen.values())
     assert np.all(got.direct_samples[got.direct_w_m2 > 0] > 0) and got.albedo_samples.sum() > 0
     for name in _ARRAYS:
@@ -198,7 +198,7 @@ def test_a_dropped_renderer_is_freed_at_once():
     try:
         rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), variant=VARIANT)
         rend.render(sun, earth, rot, direct_samples=64, albedo_samples=16)
-        assert len(rend._frozen) == 3
+        assert len(rend._frozen) == 4
         ref = weakref.ref(rend)
         del rend
         assert ref() is None
