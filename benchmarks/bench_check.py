@@ -57,7 +57,8 @@ def main(argv=None):
                   epoch_index=sl.start + pick, albedo=False, hint=False, reflected=False,
                   direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
         timed("direct reference", st.reference.analytic, sl, st.map, albedo=False)
-        timed("albedo, native cells", st.reference.analytic, sl, st.map, direct=False, mesh=True, box_albedo=True)
+        timed("albedo, native cells", st.reference.analytic, sl, st.map, direct=False, mesh=True, box_albedo=True,
+              mesh_terms=False)
         timed(f"albedo, cells refined {st.check_refine}x{st.check_refine}", st.reference.analytic, sl, st.map_refined,
               direct=False, mesh=True)
         timed("unchecked-direct masks", st.reference.direct_unchecked, sl)

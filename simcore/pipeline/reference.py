@@ -186,9 +186,10 @@ class CheckReference:
             out[k] = widen_cells(cell)
         return out
 
-    def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True, box_albedo=False):
+    def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True, box_albedo=False, mesh_terms=True):
         """Return the analytic irradiance of epochs ``sl`` on ``reflectivity_map``; ``mesh``: the albedo with
-        the traced :attr:`visibility` where shadows cross the diodes (the check's reference). The direct Sun
+        the traced :attr:`visibility` where shadows cross the diodes (the check's reference; ``mesh_terms``:
+        also its ``albedo_mesh_w_m2`` and ``albedo_visibility_error_w_m2``, :func:`diode_irradiance`). The direct Sun
         alone (``albedo=False``) is numpy and the body box's shadow kernel (traced, never frozen): it may run in
         another thread while the renderer records and replays its frozen kernels (Dr.Jit records per thread)."""
         g = self.geometry
@@ -199,12 +200,14 @@ class CheckReference:
                                body=self.body_box,
                                sun_angular_radius_rad=self.sun_angular_radius_rad, direct=direct,
                                albedo=albedo, backend="auto" if albedo else "numpy",
-                               visibility=self.visibility if mesh else None, box_albedo=box_albedo)
+                               visibility=self.visibility if mesh else None, box_albedo=box_albedo,
+                               mesh_terms=mesh_terms)
         if any(w is not None for w in self.config.windows):
-            self._windowed_analytic(out, sl, reflectivity_map, direct, mesh, albedo, box_albedo)
+            self._windowed_analytic(out, sl, reflectivity_map, direct, mesh, albedo, box_albedo, mesh_terms)
         return out
 
-    def _windowed_analytic(self, res, sl, reflectivity_map, direct, mesh, albedo=True, box_albedo=False):
+    def _windowed_analytic(self, res, sl, reflectivity_map, direct, mesh, albedo=True, box_albedo=False,
+                           mesh_terms=True):
         """Replace in ``res`` (the analytic result of epochs ``sl``) the columns of the diodes under a window by
         the model with the window: each integrand times the slab's closed-form transmittance with its
         footprint (:class:`simcore.shapes.window.WindowedWell`). The direct Sun without the body box (where the
@@ -230,6 +233,7 @@ class CheckReference:
             v = self.visibility
             vis = DirectionVisibility(v.mask[idx], v.fine[idx], v.half[idx])
         alb = diode_irradiance(*args, direct=False, visibility=vis, **common, box_albedo=box_albedo,
+                               mesh_terms=mesh_terms,
                                body=box and BodyBox(box.half_m, box.positions_m[idx], box.panel_normals[idx]))
         res.albedo_w_m2[:, idx] = alb.albedo_w_m2
         for name in ("albedo_mesh_w_m2", "albedo_visibility_error_w_m2", "albedo_box_w_m2"):

@@ -211,8 +211,8 @@ class PreparedRun:
                                        albedo=False, hint=False, reflected=False,
                                        direct_samples=max(o.direct_samples, PLAIN_CHECK_SAMPLES))
             plain[pick] = np.stack([sub.direct_w_m2, sub.direct_se_w_m2, sub.direct_dof], axis=-1)
-        # box-only and traced shares
-        native = self.reference.analytic(sl, self.map, direct=False, mesh=True, box_albedo=True)
+        # box-only and traced shares (the traced shares' own error terms come from the refined cells below)
+        native = self.reference.analytic(sl, self.map, direct=False, mesh=True, box_albedo=True, mesh_terms=False)
         native_albedo, native_mesh = native.albedo_box_w_m2, native.albedo_w_m2
         fine = self.reference.analytic(sl, self.map_refined, direct=False, mesh=True)
         native_direct = direct_ref.result().direct_w_m2
@@ -393,7 +393,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     unchecked, unchecked_window = np.zeros(mesh.shape, bool), np.zeros(mesh.shape, bool)
     for s, e in chunk_ranges(n, chunk):
         unchecked[s:e], unchecked_window[s:e] = study.reference.direct_unchecked(slice(s, e))
-        a = study.reference.analytic(slice(s, e), study.map, mesh=True, box_albedo=True)
+        a = study.reference.analytic(slice(s, e), study.map, mesh=True, box_albedo=True, mesh_terms=False)
         native[s:e, :, 0], native[s:e, :, 1], native_mesh[s:e] = a.direct_w_m2, a.albedo_box_w_m2, a.albedo_w_m2
         a = study.reference.analytic(slice(s, e), study.map_refined, direct=False, mesh=True)
         fine[s:e], mesh[s:e], mesh_err[s:e] = a.albedo_w_m2, a.albedo_mesh_w_m2, a.albedo_visibility_error_w_m2

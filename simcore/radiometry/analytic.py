@@ -273,7 +273,7 @@ def _glint_terms(glint, refl):
 
 # ---- the albedo sums ---------------------------------------------------------------------
 def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, body=None, visibility=None,
-                  box_sum=True, glint=None):  # (box_sum: the box-only sum costs one bincount here; always returned)
+                  box_sum=True, glint=None, share_sums=True):  # (box_sum: one bincount here; always returned)
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor, float64 numpy; with ``visibility`` (a
     :class:`DirectionVisibility`) also the same sum with its half-fine share, the sum of the well's
     response over its marked cells alone and the sum with the body box alone deciding everywhere (else
@@ -321,7 +321,7 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
             a = np.where(mark, a0 * fine[s_, fi % sub, fj % sub], a)
             alt[:, k] = np.bincount(ep, weights=w * a_alt, minlength=n_ep)
         out[:, k] = np.bincount(ep, weights=w * a, minlength=n_ep)
-    return out, alt, band, box_only
+    return (out, alt, band, box_only) if share_sums else (out, None, None, box_only)
 
 
 _LANE_BUCKET = 8        # the albedo kernel's lanes: runs whose lengths differ by less than this count as one length
@@ -338,11 +338,12 @@ class _DrJitOps:
 
 
 def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, precision, body_box=None,
-                  visibility=None, box_sum=True, glint=None):
+                  visibility=None, box_sum=True, glint=None, share_sums=True):
     """Return sum_c w_c A_k(...) (N, K) without the E_sun/pi factor from one Dr.Jit LLVM kernel, and the
     three sums of :func:`_albedo_numpy` for ``visibility`` (else None, None, None; the box-only one None
-    unless ``box_sum``: one accumulator less in the kernel); ``glint`` as in :func:`_albedo_numpy` (None: the
-    kernel is traced as it was without glint)."""
+    unless ``box_sum``, the half-fine share's and the marked cells' None unless ``share_sums``: accumulators
+    fewer in the kernel); ``glint`` as in :func:`_albedo_numpy` (None: the kernel is traced as it was without
+    glint)."""
     dr = _llvm.import_drjit()
     from drjit.llvm import Float, Float64, UInt32
 
@@ -416,7 +417,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
                                true_fn=_box_term, false_fn=lambda k, a0, *_: a0)
         if comp is None:
             return (acc + wt * a,)
-        part, alt, *box = more
+        shares, box = (more[:2], more[2:]) if share_sums else ((), more)
         box = [b + wt * a for b in box]
         if marked[k]:
             # the marked cells lie beyond the diode's first marked row (angle from the normal): a packet of
@@ -425,17 +426,17 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             if marked_dot[k] is not None:
                 q, top = marked_dot[k]
                 cond &= q[0] * du + q[1] * dv + q[2] * dn < top
-            part, alt, a = dr.if_stmt(args=(k, a0, a, wt, du, dv, dn, part, alt), cond=cond,
-                                      true_fn=_marked_share, false_fn=_unmarked_share)
-        else:
-            alt = alt + wt * a
-        return (acc + wt * a, part, alt, *box)
+            *shares, a = dr.if_stmt(args=(k, a0, a, wt, du, dv, dn, *shares), cond=cond,
+                                    true_fn=_marked_share, false_fn=_unmarked_share)
+        elif share_sums:
+            shares = (shares[0], shares[1] + wt * a)
+        return (acc + wt * a, *shares, *box)
 
     def _box_term(k, a0, bx, by, bz):
         # the response with the body box's slab test from the diode's centre
         return dr.select(_box_hit_dr(dr, body_box.positions_m[k], (bx, by, bz), body_box.half_m), 0.0, a0)
 
-    def _marked_share(k, a0, a, wt, du, dv, dn, part, alt):
+    def _marked_share(k, a0, a, wt, du, dv, dn, *shares):
         # the cells of _fine_index: theta from the normal, azimuth from u
         th = dr.acos(dr.clip(dn, 0.0, 1.0))
         ph = dr.atan2(dv, du) + np.pi
@@ -445,12 +446,15 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         mark = slot > 0
         ri, rj = fi % sub, fj % sub
         f_share = dr.gather(F, fine, slot * (sub * sub) + ri * sub + rj, mark)
+        if not shares:
+            return (dr.select(mark, a0 * f_share, a),)
+        part, alt = shares
         h_share = dr.gather(F, half, slot * (h * h) + (ri // 2) * h + rj // 2, mark)
         return (part + wt * dr.select(mark, a0, 0.0), alt + wt * dr.select(mark, a0 * h_share, a),
                 dr.select(mark, a0 * f_share, a))
 
-    def _unmarked_share(k, a0, a, wt, du, dv, dn, part, alt):
-        return part, alt + wt * a, a
+    def _unmarked_share(k, a0, a, wt, du, dv, dn, *shares):
+        return (shares[0], shares[1] + wt * a, a) if shares else (a,)
 
     def _no_term(wt, bx, by, bz, du, dv, dn, *acc):
         return acc
@@ -484,14 +488,13 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         bx = M[0] * ex + M[1] * ey + M[2] * ez
         by = M[3] * ex + M[4] * ey + M[5] * ez
         bz = M[6] * ex + M[7] * ey + M[8] * ez
-        new, part, alt, box = [], [], [], []
+        groups = [[] for _ in range(n_acc // K)]      # the accumulators, diode by diode: acc, (part, alt), (box)
         for k in range(K):
             f = fr[k]
             du = f[0][0] * bx + f[0][1] * by + f[0][2] * bz
             dv = f[1][0] * bx + f[1][1] * by + f[1][2] * bz
             dn = f[2][0] * bx + f[2][1] * by + f[2][2] * bz
-            state = (wt, bx, by, bz, du, dv, dn, acc[k],
-                     *((acc[K + k], acc[2 * K + k]) + ((acc[3 * K + k],) if box_sum else ()) if comp else ()))
+            state = (wt, bx, by, bz, du, dv, dn, *(acc[g * K + k] for g in range(len(groups))))
             if dark_behind[k]:
                 # the response is exactly 0 behind the diode: a packet of lanes that all look at cells behind it
                 # skips the response too (a branch in the kernel)
@@ -499,16 +502,12 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
                                  false_fn=_no_term)
             else:
                 out = _seen_term(k, *state)
-            new.append(out[0])
-            if comp is not None:
-                part.append(out[1])
-                alt.append(out[2])
-                if box_sum:
-                    box.append(out[3])
-        return (t + 1, *new, *part, *alt, *box)
+            for g, x in zip(groups, out):
+                g.append(x)
+        return (t + 1, *(x for g in groups for x in g))
 
     comp = None if visibility is None else visibility.compact
-    n_acc = K if comp is None else (4 if box_sum else 3) * K
+    n_acc = K if comp is None else (1 + 2 * bool(share_sums) + bool(box_sum)) * K
     if comp is not None:
         nt, nph = visibility.mask.shape[1:]
         sub, h = comp[3], comp[3] // 2
@@ -530,7 +529,10 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         sums[:, k] = lanes.reshape(2, n_ep, W).sum(axis=(0, 2))
     if comp is None:
         return sums, None, None, None
-    return sums[:, :K], sums[:, 2 * K:3 * K], sums[:, K:2 * K], (sums[:, 3 * K:] if box_sum else None)
+    box = sums[:, -K:] if box_sum else None
+    if not share_sums:
+        return sums[:, :K], None, None, box
+    return sums[:, :K], sums[:, 2 * K:3 * K], sums[:, K:2 * K], box
 
 
 def _marked_panel_bounds(mask, frames, body_box):
@@ -579,7 +581,7 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
                      map=None, e_sun_w_m2=E_SUN_W_M2, distance_scaling=False, eclipse="cylindrical",
                      albedo=True, backend="auto", precision="single", batch_epochs=4096, body=None,
                      sun_angular_radius_rad=0.0, direct=True, visibility=None, box_albedo=False, glint=None,
-                     earth=None):
+                     earth=None, mesh_terms=True):
     """Return the direct-Sun and albedo irradiance on K diodes at N epochs, W/m^2, as :class:`AnalyticIrradiance`.
 
     ``r_sat_ecef_m``, ``r_sun_ecef_m``: (N, 3) (or (3,)) geocentric ECEF metres;
@@ -603,7 +605,8 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     ``albedo_mesh_w_m2`` is then the albedo through those directions before their shadow, and
     ``albedo_visibility_error_w_m2`` the difference its half-fine share makes (the quadrature's error),
     and, with ``box_albedo``, ``albedo_box_w_m2`` the albedo without it (the body box deciding everywhere),
-    from the same pass.
+    from the same pass; ``mesh_terms=False`` leaves ``albedo_mesh_w_m2`` and ``albedo_visibility_error_w_m2`` out
+    (None; two sums per diode fewer in the kernel).
     ``glint``: a :class:`simcore.radiometry.glint.SunGlint`: the sea's Cox-Munk glint on each cell's sea
     fraction, added to the map's (diffuse) reflectivity (:func:`_glint_terms`); None: none.
     ``earth``: a :class:`simcore.environment.earth.Earth`, the map and the glint in one (instead of ``map`` and
@@ -664,8 +667,8 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
     alb = np.zeros((n_ep, frames.shape[0]))
     if visibility is not None and visibility.mask.shape[0] != frames.shape[0]:
         raise ValueError(f"visibility is for {visibility.mask.shape[0]} diodes, not {frames.shape[0]}")
-    alb_alt = None if visibility is None else np.zeros_like(alb)
-    alb_band = None if visibility is None else np.zeros_like(alb)
+    alb_alt = None if visibility is None or not mesh_terms else np.zeros_like(alb)
+    alb_band = None if visibility is None or not mesh_terms else np.zeros_like(alb)
     alb_box = None if visibility is None or not box_albedo else np.zeros_like(alb)
     if albedo:
         sun_unit = r_sun / np.linalg.norm(r_sun, axis=1)[:, None]
@@ -679,17 +682,17 @@ def diode_irradiance(r_sat_ecef_m, r_sun_ecef_m, R_ecef_from_body, diode_frames_
             extra = (precision,) if backend == "drjit" else ()
             alb[sl], alt, band, box_only = fn(r_sat[sl], sun_unit[sl], R_body_from_ecef[sl], frames, resps, refl,
                                               *extra, body, visibility, box_albedo,
-                                              **({} if glint is None else {"glint": terms}))
-            if visibility is not None:
+                                              **({} if glint is None else {"glint": terms}), share_sums=mesh_terms)
+            if alb_alt is not None:
                 alb_alt[sl], alb_band[sl] = alt, band
             if alb_box is not None:
                 alb_box[sl] = box_only
         alb *= (e_sun / np.pi)[:, None]
-        if visibility is not None:
+        if alb_alt is not None:
             alb_alt *= (e_sun / np.pi)[:, None]
             alb_band *= (e_sun / np.pi)[:, None]
         if alb_box is not None:
             alb_box *= (e_sun / np.pi)[:, None]
-    err = None if visibility is None else np.abs(alb - alb_alt)
+    err = None if alb_alt is None else np.abs(alb - alb_alt)
     return AnalyticIrradiance(direct_w_m2=direct, albedo_w_m2=alb, illuminated_fraction=lit,
                               albedo_mesh_w_m2=alb_band, albedo_visibility_error_w_m2=err, albedo_box_w_m2=alb_box)

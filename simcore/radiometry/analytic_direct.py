@@ -82,19 +82,30 @@ def _pair_response(resps, frames, diode, d):
     return lit, resp
 
 
-def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None):
+def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None, below=None):
     """Return ((T,), (T,) bool): the weighted mean over the disc points of each (epoch, diode) pair, ``dirs``
     (M, T, 3), ``weights`` and ``resp`` (M, T), diode ``diode[t]``, times the body box's visibility; and
     whether the box's shadow edge reaches only the disc's ``rim`` (directions (R, T, 3), if given): the
     centre and six points of the outermost ring agree, the rim's points do not (a sliver none of the M
     points can see); (T,) the box's visibility where all those probes agree on it (NaN elsewhere); and
-    whether they saw the edge cross the disc's interior."""
+    whether they saw the edge cross the disc's interior. ``below`` (T,) bool, if given: the pairs with some
+    of ``dirs`` or ``rim`` possibly below the diode's panel plane; the others' directions all read 1 (what
+    :func:`pair_visibility` gives above the plane), without asking it."""
     m, n = resp.shape
     if body is None:
         return np.einsum("mn,mn->n", weights, resp), np.zeros(n, bool), np.ones(n), np.zeros(n, bool)
 
     def vis(k, d):
         return pair_visibility(resps, frames, body.positions_m, body.panel_normals, k, d, body.half_m)
+
+    def vis_pairs(cols, d):
+        # (P, T) visibility of the directions d (P, T, 3) of pairs ``cols``: 1 for the pairs above the panel
+        v = np.ones(d.shape[:2])
+        if below is not None:
+            cols = cols[below[cols]]
+        if cols.size:
+            v[:, cols] = vis(np.tile(diode[cols], len(d)), d[:, cols].reshape(-1, 3)).reshape(len(d), len(cols))
+        return v
 
     def crossing(v_probe):
         undefined = np.isnan(v_probe).any(axis=0)
@@ -108,7 +119,7 @@ def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None)
     n_ring = 6 * rings
     probe = [0] + list(range(m - n_ring, m, max(rings, 1))) if m > 1 else [0]
     pd = dirs[probe] if rim is None else np.concatenate([dirs[probe], rim])
-    v_probe = vis(np.tile(diode, len(pd)), pd.reshape(-1, 3)).reshape(len(pd), n)
+    v_probe = vis_pairs(np.arange(n), pd)
     seen, lo, hi, cross = crossing(v_probe[:len(probe)])
     edge = (resp > 0).any(axis=0) & cross
     rim_only = np.zeros(n, bool)
@@ -119,11 +130,22 @@ def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None)
     v_all = np.broadcast_to(np.where(seen, lo, 1.0), resp.shape).copy()
     if edge.any() and m > 1:
         cols = np.flatnonzero(edge)                        # every disc point of the edge pairs, in one batch
-        v_all[:, cols] = vis(np.tile(diode[cols], m), dirs[:, cols].reshape(-1, 3)).reshape(m, len(cols))
+        v_all[:, cols] = vis_pairs(cols, dirs)[:, cols]
     mean = np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0))
     # where every probe agrees, the box's visibility over the whole disc (1 where undefined)
     steady = np.where(~(edge | rim_only) & seen, lo, np.nan) if rim is not None else np.full(n, np.nan)
     return mean, rim_only & (m > 1), steady, edge & (m > 1)
+
+
+def _below_panel(sun_body, ep, diode, body, radius_rad):
+    """Return (T,) bool, or None without a body: the (epoch ``ep[t]``, diode ``diode[t]``) pairs with some
+    direction within ``radius_rad`` of the Sun's centre at or below the plane of the diode's panel, where the
+    body box may shade it. A direction (s + o) / |s + o| (o across s, |o| <= the radius) has d . p >= (s . p -
+    |o| |p|) / |s + o| > 0 for the others: :func:`pair_visibility` reads exactly 1 along it."""
+    if body is None:
+        return None
+    p = np.asarray(body.panel_normals, float)[diode]
+    return np.einsum("tj,tj->t", sun_body[ep], p) <= (radius_rad + 1e-9) * np.linalg.norm(p, axis=1)
 
 
 # The body box's shadow edge across only the solar disc's rim, or the diode's horizon across the disc:
@@ -219,7 +241,8 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         edge_probe = disc_directions(sun_body, 0.999 * sun_angular_radius_rad
                                       * np.column_stack([np.cos(ang), np.sin(ang)]))[:, ep]
     out[ep, diode], edge, steady, inside = _disc_mean(d, weights[:, ep], resp, diode, frames, resps, body, rings,
-                                                      edge_probe)
+                                                      edge_probe, _below_panel(sun_body, ep, diode, body,
+                                                                               sun_angular_radius_rad))
     if len(dirs) == 1 or refine_rings <= rings:
         return out
     # The diode's own horizon across the disc: a sliver of the disc above it can lie beyond every point of
@@ -257,5 +280,6 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
                                               None if earth_body_m is None else earth_body_m[rows], radius_m)
     d = fine_dirs[:, at]
     out[ep, diode] = _disc_mean(d, fine_weights[:, at], _pair_response(resps, frames, diode, d)[1], diode,
-                                frames, resps, body, refine_rings)[0]
+                                frames, resps, body, refine_rings,
+                                below=_below_panel(sun_body, ep, diode, body, sun_angular_radius_rad))[0]
     return out

@@ -66,8 +66,8 @@ def convex_hull(points):
 
 
 def _lit_with_box_kernel(table, n_rims, d):
-    """Return Dr.Jit Float64 (T,) twice: the lit fraction of T (diode, direction) pairs with the body box's
-    shadow taken out (:func:`lit_fractions_with_box`), and without it (the well's own), from one Dr.Jit kernel.
+    """Return Dr.Jit Float64 (T,): the lit fraction of T (diode, direction) pairs with the body box's shadow taken
+    out (:func:`lit_fractions_with_box`), from one Dr.Jit kernel.
     ``table(c)``: column ``c`` of each pair's diode row (2 + 3 ``n_rims`` aperture parameters, then the frame
     rows u, v, n, the position and the box's half extents, 3 each); ``d`` (3,) the directions' components."""
     dr = _llvm.import_drjit()
@@ -108,8 +108,7 @@ def _lit_with_box_kernel(table, n_rims, d):
     crossed = dr.if_stmt(args=(x0, x1, y0, y1, *[x for pl in planes for x in pl]), cond=~holds_all & ~excludes_all,
                          true_fn=_bounded_area, false_fn=lambda *_: F(0.0))
     shadow = dr.select(holds_all, lit, crossed)
-    return (dr.select(front, dr.maximum(lit - shadow, 0.0) / (4 * ax * ay), 0.0),
-            lit / (4 * ax * ay))
+    return dr.select(front, dr.maximum(lit - shadow, 0.0) / (4 * ax * ay), 0.0)
 
 
 def _bounded_area(x0, x1, y0, y1, *planes):
@@ -157,13 +156,13 @@ def _bounded_area(x0, x1, y0, y1, *planes):
 
 
 def _box_pairs(table, diode, d):
-    """Return ((T,), (T,)) numpy: :func:`_lit_with_box_kernel` for T pairs, diode ``diode[t]`` (a row of ``table``
-    (K, C): the kernel's columns) toward the direction ``d[t]`` (T, 3)."""
+    """Return (T,) numpy: :func:`_lit_with_box_kernel` for T pairs, diode ``diode[t]`` (a row of ``table`` (K, C):
+    the kernel's columns) toward the direction ``d[t]`` (T, 3)."""
     T = len(d)
     if T == 0:
-        return np.zeros(0), np.zeros(0)
+        return np.zeros(0)
     if T == 1:                       # (a one-lane array would be folded into the kernel as a literal)
-        return tuple(x[:1] for x in _box_pairs(table, np.repeat(diode, 2), np.repeat(d, 2, axis=0)))
+        return _box_pairs(table, np.repeat(diode, 2), np.repeat(d, 2, axis=0))[:1]
     dr = _llvm.import_drjit()
     from drjit.llvm import Float64, UInt32
     n_cols = table.shape[1]
@@ -172,11 +171,11 @@ def _box_pairs(table, diode, d):
         row = _llvm.host_array(UInt32, diode) * n_cols      # the kernel's code depends on neither T nor K
         dirs = _llvm.host_array(Float64, d)
         lane = dr.arange(UInt32, T) * 3
-        with_box, own = _lit_with_box_kernel(lambda c: dr.gather(Float64, rows, row + c), (n_cols - 17) // 3,
-                                             [dr.gather(Float64, dirs, lane + i) for i in range(3)])
-        dr.eval(with_box, own)
-        out = np.asarray(with_box.numpy(), dtype=float), np.asarray(own.numpy(), dtype=float)
-        del rows, row, dirs, lane, with_box, own      # their Dr.Jit variables released under the lock too
+        with_box = _lit_with_box_kernel(lambda c: dr.gather(Float64, rows, row + c), (n_cols - 17) // 3,
+                                        [dr.gather(Float64, dirs, lane + i) for i in range(3)])
+        dr.eval(with_box)
+        out = np.asarray(with_box.numpy(), dtype=float)
+        del rows, row, dirs, lane, with_box           # their Dr.Jit variables released under the lock too
     return out
 
 
@@ -207,7 +206,7 @@ def lit_fractions_with_box(aperture_params, frames, positions_m, d_body, half_m)
     """
     d = np.asarray(d_body, float).reshape(-1, 3)
     table = _table(aperture_params, frames, positions_m, half_m)
-    return _box_pairs(table, np.arange(len(d)), d)[0]
+    return _box_pairs(table, np.arange(len(d)), d)
 
 
 def lit_fraction_with_box(aperture, frame, position_m, d_body, half_m):
@@ -225,15 +224,14 @@ def _aperture_params(apertures):
 def _visibility_below(table, diode, d):
     """Return (T,): lit fraction with the box over the well's own lit fraction for T pairs, diode ``diode[t]`` (a
     row of ``table``, :func:`_table`) toward the direction ``d[t]`` (T, 3) below its panel and in front of it; NaN
-    where the well itself lets no light through."""
-    with_box = _box_pairs(table, diode, d)[0]
+    where the well itself lets no light through (the box's kernel runs on the others alone)."""
     n_ap = table.shape[1] - 15
     dd = np.einsum("tij,tj->ti", table[diode, n_ap:n_ap + 9].reshape(-1, 3, 3), d)     # the directions in the diode frames
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         own = lit_rectangle_of(table[diode, :n_ap].T, dd[:, 0], dd[:, 1], dd[:, 2])[4]
     vis = np.full(len(d), np.nan)
-    lit = own > 0
-    vis[lit] = with_box[lit] / own[lit]
+    lit = np.flatnonzero(own > 0)
+    vis[lit] = _box_pairs(table, diode[lit], d[lit]) / own[lit]
     return vis
 
 

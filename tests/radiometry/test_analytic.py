@@ -302,3 +302,28 @@ def test_direction_visibility_near_the_panel_plane_backends_agree(rng):
     for name in ("albedo_w_m2", "albedo_mesh_w_m2", "albedo_visibility_error_w_m2"):
         np.testing.assert_allclose(getattr(b, name), getattr(a, name), rtol=1e-9, atol=1e-9, err_msg=name)
     assert np.count_nonzero(a.albedo_mesh_w_m2[:, :12]) > 0.1 * a.albedo_mesh_w_m2[:, :12].size
+
+
+@pytest.mark.parametrize("backend,precision", [("numpy", "double"), ("drjit", "single"), ("drjit", "double")])
+def test_albedo_without_the_mesh_terms_is_the_same_albedo(rng, backend, precision):
+    # mesh_terms=False (the run's native cells) leaves the traced shares' two extra sums out of the kernel: the
+    # albedo with the traced shares and the box-only albedo must be those of the full pass bit for bit (random
+    # marked cells and shares, so that the marked branch runs), the left-out terms None.
+    from simcore.radiometry.analytic import BodyBox, DirectionVisibility
+    r, sun, rot = _orbit(rng, n=50)
+    frames = _tilt_frames()
+    ap = WellAperture.design(70.0)
+    body = BodyBox((0.05, 0.05, 0.1135), np.array([f[2] * 0.06 for f in frames]), np.array([f[2] for f in frames]))
+    K, nt, nph, sub = len(frames), 90, 180, 4
+    mask = rng.random((K, nt, nph)) < 0.3
+    vis = DirectionVisibility(mask, rng.random((K, nt * sub, nph * sub)),
+                              rng.random((K, nt * sub // 2, nph * sub // 2)))
+    kw = dict(body=body, sun_angular_radius_rad=0.0, direct=False, visibility=vis, box_albedo=True, backend=backend,
+              precision=precision)
+    full = diode_irradiance(r, sun, rot, frames, ap, **kw)
+    lean = diode_irradiance(r, sun, rot, frames, ap, mesh_terms=False, **kw)
+    assert np.array_equal(lean.albedo_w_m2, full.albedo_w_m2)
+    assert np.array_equal(lean.albedo_box_w_m2, full.albedo_box_w_m2)
+    assert lean.albedo_mesh_w_m2 is None and lean.albedo_visibility_error_w_m2 is None
+    assert np.count_nonzero(full.albedo_mesh_w_m2) > 0.2 * full.albedo_mesh_w_m2.size      # the marked cells count
+    assert not np.array_equal(full.albedo_w_m2, full.albedo_box_w_m2)

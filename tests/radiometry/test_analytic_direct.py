@@ -328,3 +328,32 @@ def test_a_sliver_of_the_disc_left_lit_over_the_body_is_not_missed():
     assert np.all(dense > 2e-4)                           # 0.27 W/m^2 and more at 1366 W/m^2
     np.testing.assert_allclose(new, dense, rtol=0, atol=2e-5)
     assert np.all(np.abs(old - dense) > 1e-4)
+
+
+def test_pairs_left_unprobed_have_the_whole_disc_above_the_panel():
+    """_below_panel may leave a pair out of the box's probes only if every disc point (the 37 and 397 points,
+    the rim probes) lies strictly above the diode's panel plane, where pair_visibility reads 1."""
+    from simcore.radiometry.analytic_direct import _below_panel
+    rng = np.random.default_rng(5)
+    n = 4000
+    normals = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, 1.0]])
+    diode = rng.integers(0, 3, n)
+    # Sun directions within a few disc radii of each panel's plane, where the screen decides
+    tilt = rng.uniform(-3, 3, n) * SUN_RADIUS
+    s = rng.normal(size=(n, 3))
+    s -= np.einsum("nj,nj->n", s, normals[diode])[:, None] * normals[diode]
+    s /= np.linalg.norm(s, axis=1, keepdims=True)
+    s = np.cos(tilt)[:, None] * s + np.sin(tilt)[:, None] * normals[diode]
+    body = BodyBox(np.array([0.05, 0.05, 0.1]), np.zeros((3, 3)), normals)
+    flagged = _below_panel(s, np.arange(n), diode, body, SUN_RADIUS)
+    ang = 2 * np.pi * np.arange(32) / 32
+    offsets = np.concatenate([solar_disc_offsets(SUN_RADIUS, 3), solar_disc_offsets(SUN_RADIUS, 11),
+                              0.999 * SUN_RADIUS * np.column_stack([np.cos(ang), np.sin(ang)])])
+    d = disc_directions(s, offsets)                                         # (M, n, 3)
+    below_somewhere = (np.einsum("mnj,nj->mn", d, normals[diode]) < 0).any(axis=0)
+    assert not (below_somewhere & ~flagged).any()
+    assert (~flagged).sum() > n // 4 and flagged.sum() > n // 4
+    # the bound is inclusive: a centre whose height above the plane (s . p) is the radius itself is probed
+    a = SUN_RADIUS
+    assert _below_panel(np.array([[a, np.sqrt(1 - a * a), 0.0]]), np.array([0]), np.array([0]), body, a)[0]
+    assert not _below_panel(np.array([[2 * a, np.sqrt(1 - 4 * a * a), 0.0]]), np.array([0]), np.array([0]), body, a)[0]
