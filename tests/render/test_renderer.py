@@ -247,6 +247,33 @@ def test_aperture_split_is_exact_for_the_analytic_well_and_unbiased_otherwise(va
             assert np.sum(np.abs(z) >= 3) <= 1 and np.all(np.abs(z) < 5) and np.mean(z ** 2) < 2.0, z
 
 
+def test_settled_direct_tasks_take_fewer_samples_under_a_target_and_stay_exact(variant):
+    # Direct tasks whose only shadow is the diode's own analytic well (here the mesh is that well) have no variance:
+    # under a target they take the fewest samples n at which one lane differing from the rest (relative se ~1 / n
+    # to 1.25 / n) still meets it: n >= 1.25 / 0.002 = 625, fewer than the 1024 they take without one. Oracle: the
+    # closed-form lit fraction (WellAperture.lit_fraction), exact with and without the target.
+    from simcore.render.sampling import _direct_size
+    ap = WellAperture(A, A, 1.6 * A, 1.4 * A, 1.5e-3)
+    frame = diode_frame(np.array([0.0, 0.6, 0.8]))
+    centre = np.array([0.02, 0.05, 0.0])
+    d = np.concatenate([_directions_in_diode_frame(30, 25.0, 65.0, seed=8), [[0.0, 0.0, 1.0]]])
+    lit = ap.lit_fraction(d)
+    ds = DiodeSurfaces(centre[None], frame[None], [A, A], apertures=[ap])
+    rend = Renderer(ds, _well_mesh(frame, centre, ap), variant=variant)
+    for rel in (None, 0.002):
+        res = rend.render(d @ frame, seed=13, rel_se_direct=rel)
+        got = res.direct_w_m2[:, 0] / (E_SUN_W_M2 * d[:, 2])
+        np.testing.assert_allclose(got, lit, atol=2e-4)
+        n = res.direct_samples[lit > 0, 0]
+        whole = lit[lit > 0] >= 1                   # one group (the lit rectangle is the diode): one count
+        if rel is None:
+            assert np.all(n[whole] == 1024)
+        else:
+            assert whole.any() and np.all(n[whole] == _direct_size(1.25 / rel)), n
+            assert np.all(n[whole] < 1024) and np.all(1.25 / n[whole] <= rel)
+            assert np.all(n[~whole] < 1024 + 256)   # split tasks: 4/5 and 1/5 each rounded up (1156 at 1024)
+
+
 @pytest.mark.parametrize("hint", [False, True])
 def test_shadow_of_a_plate_edge_matches_its_area(hint, variant):
     # A body-like occluder that is not an aperture: an opaque plate 10 mm above a bare diode
