@@ -512,6 +512,28 @@ def _orbitish_inputs(n, seed):
     return sun, nad * (R + 700e3), np.tile(np.eye(3), (n, 1, 1))
 
 
+def test_lane_random_numbers_are_splitmix64_of_key_and_lane(variant):
+    # Oracle: SplitMix64 (Steele, Lea & Flood 2014) in numpy, the published algorithm: lane j of key k reads the
+    # generator's output at state ((k << 32) | j) x gamma, its high and low 32 bits as the first two numbers (24 bits
+    # each). Bit for bit on both variants (the CUDA backend's 64-bit multiply and shifts as the CPU's).
+    from simcore.render.launch import _SPLITMIX
+    rend = Renderer(_bare(), variant=variant)
+    mi = rend._mi
+    key = np.array([0, 1, 7, 0xFFFFFFFF, 0x9E3779B9, 123456789] * 3, np.uint32)
+    j = (np.arange(18, dtype=np.uint64) * 99991 % (1 << 20)).astype(np.uint32)
+    out = rend._rand(mi.UInt32(key), mi.UInt32(j), 2)
+    g, c1, c2 = (np.uint64(c) for c in _SPLITMIX)
+    with np.errstate(over="ignore"):
+        x = ((key.astype(np.uint64) << np.uint64(32)) | j.astype(np.uint64)) * g
+        x = (x ^ (x >> np.uint64(30))) * c1
+        x = (x ^ (x >> np.uint64(27))) * c2
+        x = x ^ (x >> np.uint64(31))
+    hi, lo = x >> np.uint64(40), (x & np.uint64(0xFFFFFFFF)) >> np.uint64(8)
+    np.testing.assert_array_equal(np.asarray(out[0].numpy()), (hi.astype(np.float64) / 2 ** 24).astype(np.float32))
+    np.testing.assert_array_equal(np.asarray(out[1].numpy()), (lo.astype(np.float64) / 2 ** 24).astype(np.float32))
+    assert len(out) == 4 and all(0 <= float(np.min(o.numpy())) and float(np.max(o.numpy())) < 1 for o in out)
+
+
 def test_same_seed_is_bitwise_identical_whatever_the_batch_split(variant):
     ds, mesh = _scene_for_determinism()
     rend = Renderer(ds, mesh, reflectivity=np.load(
