@@ -40,7 +40,9 @@ _BOUND_SHARE_GLINT = 1.0
 # round with the error falling as n^(-1/_ALBEDO_POWER). Stratified in the CDF and the bin's azimuth, the albedo's error
 # falls faster than n^(-1/2): n^(-0.75) to n^(-0.77) from pilot to final round on bench_render's orbit (TOMS 2005,
 # 500 epochs; n^(-0.62) before the azimuth was stratified; docs/renderer.md, "Fewer rays for the same accuracy").
-_ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.75, 4.0 / 3.0
+# _ALBEDO_CONF 0.65 since the bins' weights hold their solid angle (0.75 before: the same share of diode-epochs on
+# target with 16 % fewer albedo rays: bench_render's orbit, 600 epochs x seeds 1-2 and 3-4, 0.914 met against 0.905-0.907).
+_ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.65, 4.0 / 3.0
 
 
 class EarthAlbedo:
@@ -237,10 +239,11 @@ class EarthAlbedo:
         ``(_N_T + 1) (_N_P + 1)`` per task), and ``omega`` (float64, ``_N_T`` per task: a bin's solid angle / the
         cap's, by ring); ``bins`` and ``tasks`` count the bins and the tasks.
 
-        A bin's weight is its corners' largest; the PMF mixes the weights, normalised, with ``_DEFENSIVE`` of
-        ``omega`` (``omega`` alone for a task without weight, or with a NaN); the CDF is its running sum in float64 over the
-        task's bins, divided by the last. Computed as numpy would, bit for bit: float32 weights summed pairwise as
-        ``numpy.sum`` sums 512 values (blocks of 128 in eight interleaved partial sums), the running sum in order."""
+        A bin's weight is its corners' largest times its solid angle (the proposal's integral over the bin, float64);
+        the PMF mixes the weights, normalised, with ``_DEFENSIVE`` of ``omega`` (``omega`` alone for a task without
+        weight, or with a NaN); the CDF is its running sum in float64 over the task's bins, divided by the last.
+        Computed as numpy would, bit for bit: the weights summed pairwise as ``numpy.sum`` sums 512 values (blocks of
+        128 in eight interleaved partial sums), the running sum in order."""
         dr, mi = self._dr, self._mi
         B, NP1 = _N_T * _N_P, _N_P + 1
         task, b = bins // B, bins % B
@@ -251,22 +254,23 @@ class EarthAlbedo:
         # a NaN corner makes its bin's weight NaN, as numpy.maximum does, so that its task's total is NaN and the task
         # falls back on omega alone (drjit.maximum keeps NaN on the CPU, LLVM's fmaximum; CUDA's max.f32 drops it)
         w = dr.select(dr.isnan(v[0]) | dr.isnan(v[1]) | dr.isnan(v[2]) | dr.isnan(v[3]), np.nan, w)
+        om = dr.gather(mi.Float64, omega, task * _N_T + bt)
+        w = mi.Float64(w) * om
         dr.eval(w)
         # the weights' total per task, in numpy's pairwise order for 512 values
         base = tasks * B
         blocks = []
         for blk in range(B // 128):
             k0 = base + blk * 128
-            r = [dr.gather(mi.Float, w, k0 + j) for j in range(8)]
+            r = [dr.gather(mi.Float64, w, k0 + j) for j in range(8)]
             _, *r = dr.while_loop((mi.UInt32(1), *r), lambda i, *r: i < 16,
-                                  lambda i, *r: (i + 1, *[r[j] + dr.gather(mi.Float, w, k0 + i * 8 + j)
+                                  lambda i, *r: (i + 1, *[r[j] + dr.gather(mi.Float64, w, k0 + i * 8 + j)
                                                           for j in range(8)]))
             blocks.append(((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7])))
         while len(blocks) > 1:
             blocks = [blocks[i] + blocks[i + 1] for i in range(0, len(blocks), 2)]
-        tot = dr.gather(mi.Float, blocks[0], task)
-        om = dr.gather(mi.Float64, omega, task * _N_T + bt)
-        p = dr.select(tot > 0, mi.Float64(w * (1 - _DEFENSIVE) / dr.select(tot > 0, tot, 1.0)) + _DEFENSIVE * om, om)
+        tot = dr.gather(mi.Float64, blocks[0], task)
+        p = dr.select(tot > 0, (1 - _DEFENSIVE) * w / dr.select(tot > 0, tot, 1.0) + _DEFENSIVE * om, om)
         dr.eval(p)
         at = (dr.gather(mi.UInt32, first, mi.UInt32(0)) + task) * B + b
         dr.scatter(pmf, mi.Float(p), at)

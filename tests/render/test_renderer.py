@@ -247,6 +247,33 @@ def test_aperture_split_is_exact_for_the_analytic_well_and_unbiased_otherwise(va
             assert np.sum(np.abs(z) >= 3) <= 1 and np.all(np.abs(z) < 5) and np.mean(z ** 2) < 2.0, z
 
 
+def test_settled_direct_tasks_take_fewer_samples_under_a_target_and_stay_exact(variant):
+    # Direct tasks whose only shadow is the diode's own analytic well (here the mesh is that well) have no variance:
+    # under a target they take the fewest samples n at which one lane differing from the rest (relative se ~1 / n
+    # to 1.25 / n) still meets it: n >= 1.25 / 0.002 = 625, fewer than the 1024 they take without one. Oracle: the
+    # closed-form lit fraction (WellAperture.lit_fraction), exact with and without the target.
+    from simcore.render.sampling import _direct_size
+    ap = WellAperture(A, A, 1.6 * A, 1.4 * A, 1.5e-3)
+    frame = diode_frame(np.array([0.0, 0.6, 0.8]))
+    centre = np.array([0.02, 0.05, 0.0])
+    d = np.concatenate([_directions_in_diode_frame(30, 25.0, 65.0, seed=8), [[0.0, 0.0, 1.0]]])
+    lit = ap.lit_fraction(d)
+    ds = DiodeSurfaces(centre[None], frame[None], [A, A], apertures=[ap])
+    rend = Renderer(ds, _well_mesh(frame, centre, ap), variant=variant)
+    for rel in (None, 0.002):
+        res = rend.render(d @ frame, seed=13, rel_se_direct=rel)
+        got = res.direct_w_m2[:, 0] / (E_SUN_W_M2 * d[:, 2])
+        np.testing.assert_allclose(got, lit, atol=2e-4)
+        n = res.direct_samples[lit > 0, 0]
+        whole = lit[lit > 0] >= 1                   # one group (the lit rectangle is the diode): one count
+        if rel is None:
+            assert np.all(n[whole] == 1024)
+        else:
+            assert whole.any() and np.all(n[whole] == _direct_size(1.25 / rel)), n
+            assert np.all(n[whole] < 1024) and np.all(1.25 / n[whole] <= rel)
+            assert np.all(n[~whole] < 1024 + 256)   # split tasks: 4/5 and 1/5 each rounded up (1156 at 1024)
+
+
 @pytest.mark.parametrize("hint", [False, True])
 def test_shadow_of_a_plate_edge_matches_its_area(hint, variant):
     # A body-like occluder that is not an aperture: an opaque plate 10 mm above a bare diode
@@ -485,6 +512,28 @@ def _orbitish_inputs(n, seed):
     return sun, nad * (R + 700e3), np.tile(np.eye(3), (n, 1, 1))
 
 
+def test_lane_random_numbers_are_splitmix64_of_key_and_lane(variant):
+    # Oracle: SplitMix64 (Steele, Lea & Flood 2014) in numpy, the published algorithm: lane j of key k reads the
+    # generator's output at state ((k << 32) | j) x gamma, its high and low 32 bits as the first two numbers (24 bits
+    # each). Bit for bit on both variants (the CUDA backend's 64-bit multiply and shifts as the CPU's).
+    from simcore.render.launch import _SPLITMIX
+    rend = Renderer(_bare(), variant=variant)
+    mi = rend._mi
+    key = np.array([0, 1, 7, 0xFFFFFFFF, 0x9E3779B9, 123456789] * 3, np.uint32)
+    j = (np.arange(18, dtype=np.uint64) * 99991 % (1 << 20)).astype(np.uint32)
+    out = rend._rand(mi.UInt32(key), mi.UInt32(j), 2)
+    g, c1, c2 = (np.uint64(c) for c in _SPLITMIX)
+    with np.errstate(over="ignore"):
+        x = ((key.astype(np.uint64) << np.uint64(32)) | j.astype(np.uint64)) * g
+        x = (x ^ (x >> np.uint64(30))) * c1
+        x = (x ^ (x >> np.uint64(27))) * c2
+        x = x ^ (x >> np.uint64(31))
+    hi, lo = x >> np.uint64(40), (x & np.uint64(0xFFFFFFFF)) >> np.uint64(8)
+    np.testing.assert_array_equal(np.asarray(out[0].numpy()), (hi.astype(np.float64) / 2 ** 24).astype(np.float32))
+    np.testing.assert_array_equal(np.asarray(out[1].numpy()), (lo.astype(np.float64) / 2 ** 24).astype(np.float32))
+    assert len(out) == 4 and all(0 <= float(np.min(o.numpy())) and float(np.max(o.numpy())) < 1 for o in out)
+
+
 def test_same_seed_is_bitwise_identical_whatever_the_batch_split(variant):
     ds, mesh = _scene_for_determinism()
     rend = Renderer(ds, mesh, reflectivity=np.load(
@@ -554,9 +603,9 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
     # error falling as n^(-1/_ALBEDO_POWER). Its promise is the target in expectation, not on every task: the final
     # se is an estimate from a round sized by another estimate, so se^2 / target^2 of a task exceeds 1 on a few
     # tasks. The oracle is that promise, pooled over the ~50 sized tasks (more samples than the first round's 256,
-    # fewer than the cap): mean (se / target)^2 <= 1 (0.45-0.51 over seeds 1-6).
-    # Deliberately wrong input: the rule told the error falls as n^(-2) (power 0.5): ~20 tasks are sized, too few
-    # samples each, and the mean reads 1.38-1.67 over seeds 1-6 and fails.
+    # fewer than the cap): mean (se / target)^2 <= 1 (0.42-0.50 over seeds 1-6, 51-57 tasks).
+    # Deliberately wrong input: the rule told the error falls as n^(-2) (power 0.5): 6-13 tasks are sized, too few
+    # samples each, and the mean reads 1.24-1.54 over seeds 1-6 and fails.
     # (Was: every task's se <= its target, which held for seed 3 by luck, at 0.999 on one task; cuda_ad_mono's
     # other float rounding put that task at > 1 on an H100.)
     from simcore.render import sampling
@@ -568,7 +617,7 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
     rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3), variant=variant)
     sun, earth, rot = _orbitish_inputs(64, 2)
     res, q = _target_variance_ratio(rend, sun, earth, rot, seed=3)
-    assert len(q) >= (15 if wrong else 40)
+    assert len(q) >= (5 if wrong else 40)
     assert (q.mean() > 1) == wrong, q.mean()
     if wrong:
         return

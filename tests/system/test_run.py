@@ -20,9 +20,13 @@ def _sunsim(args, **kw):
 
 
 def test_killed_run_resumes_to_identical_numbers(tmp_path):
+    # (the analytic check's verdict is not this test's business: with seed 0 the check's hint-free direct estimate
+    # at epoch 16 of diode 2 reads > 4 standard errors high on 56-57 of 200 seeds, with TEA or SplitMix random
+    # numbers alike, where 1024 samples miss a sliver of shadow the probes do not find; SplitMix's seed 0 is one)
+    small = SMALL + ["--no-fail-on-check"]
     out = str(tmp_path / "killed.nc")
     log = open(tmp_path / "killed.log", "w+")
-    proc = subprocess.Popen(SUNSIM + SMALL + ["-o", out], stdout=subprocess.DEVNULL, stderr=log)
+    proc = subprocess.Popen(SUNSIM + small + ["-o", out], stdout=subprocess.DEVNULL, stderr=log)
     partial = out + ".partial"
     deadline = time.time() + 300
     while time.time() < deadline:
@@ -43,13 +47,13 @@ def test_killed_run_resumes_to_identical_numbers(tmp_path):
     n_before = len([f for f in os.listdir(partial) if f.startswith("chunk_")])
     assert 2 <= n_before < 6
 
-    resumed = _sunsim(SMALL + ["-o", out])
+    resumed = _sunsim(small + ["-o", out])
     assert resumed.returncode == 0, resumed.stderr
     assert "resuming" in resumed.stderr
     assert not os.path.exists(partial)
 
     whole = str(tmp_path / "whole.nc")
-    straight = _sunsim(SMALL + ["-o", whole])
+    straight = _sunsim(small + ["-o", whole])
     assert straight.returncode == 0, straight.stderr
 
     a, b = xr.load_dataset(out), xr.load_dataset(whole)
