@@ -277,18 +277,25 @@ class EarthAlbedo:
             blocks.append(((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7])))
         while len(blocks) > 1:
             blocks = [blocks[i] + blocks[i + 1] for i in range(0, len(blocks), 2)]
-        tot = dr.gather(mi.Float64, blocks[0], task)
-        p = dr.select(tot > 0, (1 - _DEFENSIVE) * w / dr.select(tot > 0, tot, 1.0) + _DEFENSIVE * om, om)
+        tot = blocks[0]
+        dr.eval(tot)
+
+        def share(w_, om_, tot_):
+            """A bin's probability (float64) from its weight, its solid angle and its task's total weight."""
+            return dr.select(tot_ > 0, (1 - _DEFENSIVE) * w_ / dr.select(tot_ > 0, tot_, 1.0) + _DEFENSIVE * om_, om_)
+
+        def share_at(i):
+            """Bin ``i``'s probability of each task (the running sums': recomputed, not stored in float64)."""
+            return share(dr.gather(mi.Float64, w, base + i), dr.gather(mi.Float64, omega, tasks * _N_T + i // _N_P), tot)
         # (cdf: a kernel's output of its own, every element of which the running sum below overwrites)
-        pmf, cdf = mi.Float(p), mi.Float(om)
-        dr.eval(p, pmf, cdf)
+        pmf, cdf = mi.Float(share(w, om, dr.gather(mi.Float64, tot, task))), mi.Float(om)
+        dr.eval(pmf, cdf)
         # the running sum, twice: its total, then each bin's share of it
         cond = lambda i, s: i < B  # noqa: E731
-        _, total = dr.while_loop((mi.UInt32(0), mi.Float64(0.0)), cond,
-                                 lambda i, s: (i + 1, s + dr.gather(mi.Float64, p, base + i)))
+        _, total = dr.while_loop((mi.UInt32(0), mi.Float64(0.0)), cond, lambda i, s: (i + 1, s + share_at(i)))
 
         def step(i, s):
-            s = s + dr.gather(mi.Float64, p, base + i)
+            s = s + share_at(i)
             dr.scatter(cdf, dr.select(i == B - 1, 1.0, mi.Float(s / total)), base + i)
             return i + 1, s
         dr.while_loop((mi.UInt32(0), mi.Float64(0.0)), cond, step)
