@@ -20,12 +20,13 @@ from simcore.render.sampling import Rounds, Sampling, _albedo_size, _direct_size
 from simcore.render.split import ApertureSplit
 from simcore.render.windows import CoverGlass, _window_params
 
-# Epochs per batch of Renderer.render (the numbers do not depend on it): a batch costs ~40 launches and host work
-# per round whatever its size, so larger batches spread them over more epochs (bench_rays' orbit, 600 epochs: 1.51,
-# 1.27, 1.25 ms per epoch at 64, 256, 512; host share 0.16, 0.12, 0.10; docs/renderer.md, "Launches per batch").
-# 512: the run's chunk (simcore.pipeline.options), so a run renders a chunk in one batch. The reflected tasks still
-# gather REFLECTED_BATCH_EPOCHS at a time.
-BATCH_EPOCHS = 512
+# Epochs per batch of Renderer.render (the numbers do not depend on it): a batch costs ~35 launches and host work per
+# round whatever its size, so larger batches spread them over more epochs (bench_rays' orbit, 600 epochs, under load:
+# 1.51, 1.27, 1.25 ms per epoch at 64, 256, 512, host share 0.16, 0.12, 0.10; on a quiet machine 0.37, 0.36, 0.38 s
+# the first 600 epochs after 64 of warm-up: a larger batch's first launches touch more fresh memory). 256: the
+# gain of 512 without its first-touch cost and memory (docs/renderer.md, "Launches per batch"). The reflected tasks
+# still gather REFLECTED_BATCH_EPOCHS at a time.
+BATCH_EPOCHS = 256
 
 
 class Renderer(Probes, ReflectedLight, EarthAlbedo, DirectSun, CoverGlass, ApertureSplit, Rounds, Launcher):
