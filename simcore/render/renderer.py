@@ -20,7 +20,7 @@ from simcore.render.sampling import Rounds, Sampling, _albedo_size, _direct_size
 from simcore.render.split import ApertureSplit
 from simcore.render.windows import CoverGlass, _window_params
 
-# Epochs per batch of Renderer.render (the numbers do not depend on it): a batch costs ~35 launches and host work per
+# Epochs per batch of Renderer.render (the numbers do not depend on it): a batch costs ~40-60 launches and host work per
 # round whatever its size, so larger batches spread them over more epochs (bench_rays' orbit, 600 epochs, under load:
 # 1.51, 1.27, 1.25 ms per epoch at 64, 256, 512, host share 0.16, 0.12, 0.10; on a quiet machine 0.37, 0.36, 0.38 s
 # the first 600 epochs after 64 of warm-up: a larger batch's first launches touch more fresh memory). 256: the
