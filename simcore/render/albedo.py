@@ -240,9 +240,10 @@ class EarthAlbedo:
         return dict({k: v[:T] for k, v in prop.items()}, pmf=pmf, cdf=cdf)
 
     def _proposal_tables(self, f, omega, bins, tasks):
-        """Return the proposal's PMF and CDF (float32, a row of ``_N_T _N_P`` bins per task) from ``f``, the proposal's weights at the bins' corners (:meth:`_proposal_kernel`,
-        ``(_N_T + 1) (_N_P + 1)`` per task), and ``omega`` (float64, ``_N_T`` per task: a bin's solid angle / the
-        cap's, by ring); ``bins`` and ``tasks`` count the bins and the tasks.
+        """Return the proposal's PMF and CDF (float32, a row of ``_N_T _N_P`` bins per task) from ``f``, the
+        proposal's weights at the bins' corners (:meth:`_proposal_kernel`, ``(_N_T + 1) (_N_P + 1)`` per task), and
+        ``omega`` (float64, ``_N_T`` per task: a bin's solid angle / the cap's, by ring); ``bins`` and ``tasks`` count
+        the bins and the tasks.
 
         A bin's weight is its corners' largest times its solid angle (the proposal's integral over the bin, float64);
         the PMF mixes the weights, normalised, with ``_DEFENSIVE`` of ``omega`` (``omega`` alone for a task without
@@ -286,7 +287,8 @@ class EarthAlbedo:
 
         def share_at(i):
             """Bin ``i``'s probability of each task (the running sums': recomputed, not stored in float64)."""
-            return share(dr.gather(mi.Float64, w, base + i), dr.gather(mi.Float64, omega, tasks * _N_T + i // _N_P), tot)
+            om_i = dr.gather(mi.Float64, omega, tasks * _N_T + i // _N_P)
+            return share(dr.gather(mi.Float64, w, base + i), om_i, tot)
         # (cdf: a kernel's output of its own, every element of which the running sum below overwrites)
         pmf, cdf = mi.Float(share(w, om, dr.gather(mi.Float64, tot, task))), mi.Float(om)
         dr.eval(pmf, cdf)
