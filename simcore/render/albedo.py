@@ -222,28 +222,37 @@ class EarthAlbedo:
         tlevel = reach_level(corner_reach(tedge, xmax, dist / R), self.reflectivity.shape[0])
         omega = np.diff(tedge, axis=1) / _N_P                   # (T, N_T): a bin's solid angle / the cap's
         B = _N_T * _N_P
-        pmf, cdf = dr.zeros(mi.Float, len(tedge) * B), dr.zeros(mi.Float, len(tedge) * B)
-        dr.make_opaque(pmf, cdf)
+        parts = []
         for sl, f in self._trace_tasks(self._proposal_kernel, dict(t, tlevel=tlevel.astype(np.float32), **prop),
                                        n_points):
             n = sl.stop - sl.start
-            bins, tasks, first = dr.arange(mi.UInt32, n * B), dr.arange(mi.UInt32, n), mi.UInt32(sl.start, sl.start)
-            dr.make_opaque(bins, tasks, first)
-            self._replay("_proposal_tables", self._proposal_tables, f, host_array(mi.Float64, omega[sl]), bins, tasks,
-                         first, pmf, cdf)
+            bins, tasks = dr.arange(mi.UInt32, n * B), dr.arange(mi.UInt32, n)
+            dr.make_opaque(bins, tasks)
+            parts.append((sl, self._replay("_proposal_tables", self._proposal_tables, f,
+                                           host_array(mi.Float64, omega[sl]), bins, tasks)))
+        pmf, cdf = parts[0][1]
+        if len(parts) > 1:                                      # (tasks beyond one launch's lanes: _MAX_LANES)
+            pmf, cdf = dr.zeros(mi.Float, len(tedge) * B), dr.zeros(mi.Float, len(tedge) * B)
+            for sl, (p, c) in parts:
+                at = dr.arange(mi.UInt32, sl.start * B, sl.stop * B)
+                dr.scatter(pmf, p, at)
+                dr.scatter(cdf, c, at)
         return dict({k: v[:T] for k, v in prop.items()}, pmf=pmf, cdf=cdf)
 
-    def _proposal_tables(self, f, omega, bins, tasks, first, pmf, cdf):
-        """Write the proposal's PMF and CDF (float32) of tasks ``first[0]`` .. into ``pmf`` and ``cdf`` (rows of
-        ``_N_T _N_P`` bins), from ``f``, the proposal's weights at the bins' corners (:meth:`_proposal_kernel`,
-        ``(_N_T + 1) (_N_P + 1)`` per task), and ``omega`` (float64, ``_N_T`` per task: a bin's solid angle / the
-        cap's, by ring); ``bins`` and ``tasks`` count the bins and the tasks.
+    def _proposal_tables(self, f, omega, bins, tasks):
+        """Return the proposal's PMF and CDF (float32, a row of ``_N_T _N_P`` bins per task) from ``f``, the
+        proposal's weights at the bins' corners (:meth:`_proposal_kernel`, ``(_N_T + 1) (_N_P + 1)`` per task), and
+        ``omega`` (float64, ``_N_T`` per task: a bin's solid angle / the cap's, by ring); ``bins`` and ``tasks`` count
+        the bins and the tasks.
 
         A bin's weight is its corners' largest times its solid angle (the proposal's integral over the bin, float64);
         the PMF mixes the weights, normalised, with ``_DEFENSIVE`` of ``omega`` (``omega`` alone for a task without
         weight, or with a NaN); the CDF is its running sum in float64 over the task's bins, divided by the last.
         Computed as numpy would, bit for bit: the weights summed pairwise as ``numpy.sum`` sums 512 values (blocks of
-        128 in eight interleaved partial sums), the running sum in order."""
+        128 in eight interleaved partial sums), the running sum in order.
+
+        Both tables are this recording's own outputs, written in place: scattered into tables passed in (and held by
+        the caller), Dr.Jit copied them whole at each launch (2 x 2.4 MB a batch of 256 epochs, ~5 % of the render)."""
         dr, mi = self._dr, self._mi
         B, NP1 = _N_T * _N_P, _N_P + 1
         task, b = bins // B, bins % B
@@ -269,22 +278,30 @@ class EarthAlbedo:
             blocks.append(((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7])))
         while len(blocks) > 1:
             blocks = [blocks[i] + blocks[i + 1] for i in range(0, len(blocks), 2)]
-        tot = dr.gather(mi.Float64, blocks[0], task)
-        p = dr.select(tot > 0, (1 - _DEFENSIVE) * w / dr.select(tot > 0, tot, 1.0) + _DEFENSIVE * om, om)
-        dr.eval(p)
-        at = (dr.gather(mi.UInt32, first, mi.UInt32(0)) + task) * B + b
-        dr.scatter(pmf, mi.Float(p), at)
+        tot = blocks[0]
+        dr.eval(tot)
+
+        def share(w_, om_, tot_):
+            """A bin's probability (float64) from its weight, its solid angle and its task's total weight."""
+            return dr.select(tot_ > 0, (1 - _DEFENSIVE) * w_ / dr.select(tot_ > 0, tot_, 1.0) + _DEFENSIVE * om_, om_)
+
+        def share_at(i):
+            """Bin ``i``'s probability of each task (the running sums': recomputed, not stored in float64)."""
+            om_i = dr.gather(mi.Float64, omega, tasks * _N_T + i // _N_P)
+            return share(dr.gather(mi.Float64, w, base + i), om_i, tot)
+        # (cdf: a kernel's output of its own, every element of which the running sum below overwrites)
+        pmf, cdf = mi.Float(share(w, om, dr.gather(mi.Float64, tot, task))), mi.Float(om)
+        dr.eval(pmf, cdf)
         # the running sum, twice: its total, then each bin's share of it
-        at0 = (dr.gather(mi.UInt32, first, mi.UInt32(0)) + tasks) * B
         cond = lambda i, s: i < B  # noqa: E731
-        _, total = dr.while_loop((mi.UInt32(0), mi.Float64(0.0)), cond,
-                                 lambda i, s: (i + 1, s + dr.gather(mi.Float64, p, base + i)))
+        _, total = dr.while_loop((mi.UInt32(0), mi.Float64(0.0)), cond, lambda i, s: (i + 1, s + share_at(i)))
 
         def step(i, s):
-            s = s + dr.gather(mi.Float64, p, base + i)
-            dr.scatter(cdf, dr.select(i == B - 1, 1.0, mi.Float(s / total)), at0 + i)
+            s = s + share_at(i)
+            dr.scatter(cdf, dr.select(i == B - 1, 1.0, mi.Float(s / total)), base + i)
             return i + 1, s
         dr.while_loop((mi.UInt32(0), mi.Float64(0.0)), cond, step)
+        return pmf, cdf
 
     def _albedo_rounds(self, e_, k_, g_, sun, earth, rot, E, plan, out, n_used):
         """Render the albedo of tasks (epochs ``e_``, diodes ``k_``) into ``out`` by the :class:`Sampling` ``plan``

@@ -229,20 +229,26 @@ class Launcher:
         layout, tables, fields = [], {}, []
         nf = nu = 0
         for name, v in t.items():
-            if v is None:
+            if v is None or name == "_packed":
                 continue
             if name in _TABLES:
                 tables[name] = v                    # uploaded once for all the tasks (_tables)
                 continue
             v = np.asarray(v)
-            if name == "m":
+            if name in ("_f", "_u"):                # fields packed once for all the rounds (_pack)
+                integer = name == "_u"
+                at = nu if integer else nf
+                layout += [(n_, at + c, w, i_) for n_, c, w, i_ in t["_packed"] if i_ == integer]
+                parts = [(None, v, integer)]
+            elif name == "m":
                 parts = [(name, v.astype(np.uint32), True), ("inv_m", 1.0 / v, False), ("half_inv_m", 0.5 / v, False)]
             else:
                 parts = [(name, v, v.dtype.kind in "iub")]
             for name_, v_, integer in parts:
                 v_ = v_.reshape(T, -1)
-                layout.append((name_, nu if integer else nf, v_.shape[1], integer))
-                fields.append(v_)
+                fields.append((nu if integer else nf, v_.shape[1], integer, v_))
+                if name_ is not None:
+                    layout.append((name_, nu if integer else nf, v_.shape[1], integer))
                 if integer:
                     nu += v_.shape[1]
                 else:
@@ -250,7 +256,7 @@ class Launcher:
         # filled in place in Dr.Jit-safe buffers and handed over without another copy (simcore._llvm.host_buffer)
         f, u = host_buffer(T * nf, np.float32), host_buffer(T * nu, np.uint32)
         f2, u2 = f.reshape(T, nf), u.reshape(T, nu)
-        for (_, c, w, integer), v in zip(layout, fields):
+        for c, w, integer, v in fields:
             (u2 if integer else f2)[:, c:c + w] = v
         tables["refl"] = self._refl_dr
         tables["refl_max"] = self._refl_max_dr
@@ -469,6 +475,31 @@ def _no_cycle_collection():
             _GC_STATE["depth"] -= 1
             if _GC_STATE["depth"] == 0 and _GC_STATE["was_enabled"]:
                 gc.enable()
+
+
+def _pack(t):
+    """Return the task dict ``t`` with its numpy fields (but ``m`` and the tables, ``_TABLES``) packed as
+    :meth:`Launcher._lanes` packs them, once: ``_f`` (T, nf) float32 and ``_u`` (T, nu) uint32, ``_packed`` naming their
+    columns ((field, first column, width, in _u), ...). A round then takes its tasks' rows of two arrays (:func:`_take`)
+    instead of every field's, and casts nothing (the values are those of packing each round: the same float32
+    rounding of the same float64 values)."""
+    T = len(next(v for v in t.values() if isinstance(v, np.ndarray)))
+    out, cols, nf, nu = {}, [], 0, 0
+    for name, v in t.items():
+        if not isinstance(v, np.ndarray) or name in _TABLES or name == "m":
+            out[name] = v
+            continue
+        integer = v.dtype.kind in "iub"
+        v = v.reshape(T, -1)
+        cols.append((name, nu if integer else nf, v.shape[1], integer, v))
+        if integer:
+            nu += v.shape[1]
+        else:
+            nf += v.shape[1]
+    f, u = np.empty((T, nf), np.float32), np.empty((T, nu), np.uint32)
+    for _, c, w, integer, v in cols:
+        (u if integer else f)[:, c:c + w] = v
+    return dict(out, _f=f, _u=u, _packed=tuple(col[:4] for col in cols))
 
 
 def _pad2(t):

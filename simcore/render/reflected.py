@@ -19,6 +19,10 @@ _REFLECTED_SAMPLES0 = 256
 _SPAWN_EPS_M = 2e-6
 _RR_DEPTH = 3             # Russian roulette from the fourth path vertex on
 _REFLECTED_LANES = 1 << 20  # reflected paths gathered over epochs before a wavefront is launched
+# epochs whose reflected tasks join a wavefront at once, whatever Renderer.render's batch_epochs: a wavefront
+# holds at most this many epochs' paths past _REFLECTED_LANES (simcore.pipeline.preflight.REFLECTED_BATCH_EPOCHS,
+# the run's memory check, is the same number: tests/render/test_reflected.py)
+REFLECTED_BATCH_EPOCHS = 64
 # First direction of a reflected path: cells of each diode's hemisphere (zenith x azimuth) where probe rays
 # meet the spacecraft get the samples (paths into empty sky carry nothing: ~95 % of cosine-drawn ones on the
 # thesis layout), mixed with this share of cosine-weighted sampling so that every direction keeps a density

@@ -14,11 +14,19 @@ from simcore.render.albedo import (_ALBEDO_CONF, _ALBEDO_PILOT, _ALBEDO_POWER, _
 from simcore.render.direct import _DIRECT_SAMPLES0, DirectSun, in_umbra
 from simcore.render.launch import SUN_ANGULAR_RADIUS_RAD, Launcher, choose_variant, occluder_scene
 from simcore.render.probes import Probes
-from simcore.render.reflected import _REFLECTED_LANES, _REFLECTED_SAMPLES0, ReflectedLight
+from simcore.render.reflected import _REFLECTED_LANES, _REFLECTED_SAMPLES0, REFLECTED_BATCH_EPOCHS, ReflectedLight
 from simcore.render.results import RenderResult
 from simcore.render.sampling import Rounds, Sampling, _albedo_size, _direct_size
 from simcore.render.split import ApertureSplit
 from simcore.render.windows import CoverGlass, _window_params
+
+# Epochs per batch of Renderer.render (the numbers do not depend on it): a batch costs ~40-60 launches and host work per
+# round whatever its size, so larger batches spread them over more epochs (bench_rays' orbit, 600 epochs, under load:
+# 1.51, 1.27, 1.25 ms per epoch at 64, 256, 512, host share 0.16, 0.12, 0.10; on a quiet machine 0.37, 0.36, 0.38 s
+# the first 600 epochs after 64 of warm-up: a larger batch's first launches touch more fresh memory). 256: the
+# gain of 512 without its first-touch cost and memory (docs/renderer.md, "Launches per batch"). The reflected tasks
+# still gather REFLECTED_BATCH_EPOCHS at a time.
+BATCH_EPOCHS = 256
 
 
 class Renderer(Probes, ReflectedLight, EarthAlbedo, DirectSun, CoverGlass, ApertureSplit, Rounds, Launcher):
@@ -177,7 +185,7 @@ class Renderer(Probes, ReflectedLight, EarthAlbedo, DirectSun, CoverGlass, Apert
                sun_dir_earth_body=None, earth_sun_scale=None, seed=0, epoch_offset=0, epoch_index=None, direct_samples=_DIRECT_SAMPLES0, albedo_samples=2 * _ALBEDO_STRATA0,
                rel_se_direct=None, rel_se_albedo=None, abs_se_floor_w_m2=0.01,
                max_direct_samples=1 << 17,
-               max_albedo_samples=65536, albedo=True, hint=True, batch_epochs=64, progress=None,
+               max_albedo_samples=65536, albedo=True, hint=True, batch_epochs=BATCH_EPOCHS, progress=None,
                reflected=True, reflected_samples=_REFLECTED_SAMPLES0):
         """Return a :class:`RenderResult`: direct-Sun and albedo irradiance (N, K) in W/m^2 with
         standard errors.
@@ -229,10 +237,14 @@ class Renderer(Probes, ReflectedLight, EarthAlbedo, DirectSun, CoverGlass, Apert
             self._direct_batch(inp, ep, dk, g_ep, E, cos_c, plans["direct"], out, n_dir)
             if inp.do_albedo:
                 self._albedo_batch(inp, ep, dk, g_ep, E_e, plans["albedo"], out, n_alb)
-            if do_reflected:
-                pending.append(self._reflected_tasks(inp, ep, dk, g_ep))
+            # the reflected tasks gathered REFLECTED_BATCH_EPOCHS epochs at a time, whatever batch_epochs: a
+            # wavefront then holds at most that many epochs past _REFLECTED_LANES lanes (the run's memory check)
+            for r0 in range(0, len(eps), REFLECTED_BATCH_EPOCHS) if do_reflected else ():
+                sub = slice(r0 * K, (r0 + REFLECTED_BATCH_EPOCHS) * K)
+                pending.append(self._reflected_tasks(inp, ep[sub], dk[sub], g_ep[sub]))
                 # the wavefront's launches cost ~10 ms each to trace whatever their width: gather many epochs
-                if sum(len(p[0]) for p in pending) * plans["reflected"].n0 >= _REFLECTED_LANES or eps[-1] == N - 1:
+                if (sum(len(p[0]) for p in pending) * plans["reflected"].n0 >= _REFLECTED_LANES
+                        or eps[min(len(eps), r0 + REFLECTED_BATCH_EPOCHS) - 1] == N - 1):
                     e_, k_, gg = (np.concatenate(x) for x in zip(*pending))
                     pending = []
                     if len(e_):

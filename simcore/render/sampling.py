@@ -4,7 +4,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from simcore.render.launch import _mix32, _take
+from simcore.render.launch import _mix32, _pack, _take
 
 # Estimators (part of the random-number key): the direct Sun, the albedo, the direct Sun without the
 # analytic aperture split (the check's independent estimate).
@@ -45,6 +45,7 @@ class Rounds:
     def _rounds(self, kernel, base, kind, g_, k_, plan):
         """Return (mean, standard error, effective degrees of freedom, samples) per task in ``base``, in lane units
         x ``plan.fac``, by the :class:`Sampling` ``plan`` (docs/renderer.md, "Rounds toward a target")."""
+        base = _pack(base)
         n0 = np.broadcast_to(np.asarray(plan.n0, np.int64), (len(g_),))
         if plan.rel is None:
             return self._round(kernel, base, kind, g_, k_, plan, n0.copy(), 0)

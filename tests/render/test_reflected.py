@@ -239,6 +239,24 @@ def test_all_black_configuration_has_no_reflected_and_unchanged_direct_albedo(va
     np.testing.assert_array_equal(c.total_w_m2, c.direct_w_m2 + c.albedo_w_m2 + c.reflected_w_m2)
 
 
+
+def test_reflected_wavefronts_hold_at_most_the_run_checks_epochs_whatever_the_batch(variant, monkeypatch):
+    # The run's memory check (simcore.pipeline.preflight) sizes a wavefront as REFLECTED_BATCH_EPOCHS epochs of
+    # paths; with every sub-batch past _REFLECTED_LANES (1 lane), each wavefront is one sub-batch of those epochs,
+    # in order, whatever batch_epochs (150 epochs in one batch of 256: wavefronts of 64, 64 and 22 epochs).
+    import simcore.render.renderer as renderer_module
+    from simcore.pipeline.preflight import REFLECTED_BATCH_EPOCHS as checked
+    from simcore.render.reflected import REFLECTED_BATCH_EPOCHS
+    assert REFLECTED_BATCH_EPOCHS == checked
+    rend = Renderer(_diode(SIDE), _quad([[X0, -1.0, 0.0], [X0, -1.0, 1.0], [X0, 1.0, 1.0], [X0, 1.0, 0.0]], "mirror"),
+                    variant=variant)
+    waves = []
+    monkeypatch.setattr(renderer_module, "_REFLECTED_LANES", 1)
+    monkeypatch.setattr(rend, "_reflected_round", lambda e_, *a: waves.append(e_.copy()))
+    rend.render(np.repeat(SUN[None], 150, axis=0), reflected_samples=16, batch_epochs=256)
+    assert [len(w) for w in waves] == [64, 64, 22]
+    assert np.array_equal(np.concatenate(waves), np.arange(150))
+
 def test_bad_reflected_arguments(variant):
     rend = Renderer(_diode(0.001), _quad([[-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], "mirror"), variant=variant)
     with pytest.raises(ValueError, match="reflected_samples must be 4 m"):
