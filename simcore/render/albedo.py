@@ -40,9 +40,7 @@ _BOUND_SHARE_GLINT = 1.0
 # round with the error falling as n^(-1/_ALBEDO_POWER). Stratified in the CDF and the bin's azimuth, the albedo's error
 # falls faster than n^(-1/2): n^(-0.75) to n^(-0.77) from pilot to final round on bench_render's orbit (TOMS 2005,
 # 500 epochs; n^(-0.62) before the azimuth was stratified; docs/renderer.md, "Fewer rays for the same accuracy").
-# _ALBEDO_CONF 0.65 since the bins' weights hold their solid angle (0.75 before: the same share of diode-epochs on
-# target with 16 % fewer albedo rays: bench_render's orbit, 600 epochs x seeds 1-2 and 3-4, 0.914 met against 0.905-0.907).
-_ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.65, 4.0 / 3.0
+_ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.75, 4.0 / 3.0
 
 
 class EarthAlbedo:
@@ -245,11 +243,11 @@ class EarthAlbedo:
         ``omega`` (float64, ``_N_T`` per task: a bin's solid angle / the cap's, by ring); ``bins`` and ``tasks`` count
         the bins and the tasks.
 
-        A bin's weight is its corners' largest times its solid angle (the proposal's integral over the bin, float64);
-        the PMF mixes the weights, normalised, with ``_DEFENSIVE`` of ``omega`` (``omega`` alone for a task without
-        weight, or with a NaN); the CDF is its running sum in float64 over the task's bins, divided by the last.
-        Computed as numpy would, bit for bit: the weights summed pairwise as ``numpy.sum`` sums 512 values (blocks of
-        128 in eight interleaved partial sums), the running sum in order.
+        A bin's weight is its corners' largest (not times its solid angle: docs/renderer.md, "Fewer rays for the same
+        accuracy"); the PMF mixes the weights, normalised, with ``_DEFENSIVE`` of ``omega`` (``omega`` alone for a task
+        without weight, or with a NaN); the CDF is its running sum in float64 over the task's bins, divided by the
+        last. Computed as numpy would, bit for bit: float32 weights summed pairwise as ``numpy.sum`` sums 512 values
+        (blocks of 128 in eight interleaved partial sums), the running sum in order.
 
         Both tables are this recording's own outputs, written in place: scattered into tables passed in (and held by
         the caller), Dr.Jit copied them whole at each launch (2 x 2.4 MB a batch of 256 epochs, ~5 % of the render)."""
@@ -264,16 +262,15 @@ class EarthAlbedo:
         # falls back on omega alone (drjit.maximum keeps NaN on the CPU, LLVM's fmaximum; CUDA's max.f32 drops it)
         w = dr.select(dr.isnan(v[0]) | dr.isnan(v[1]) | dr.isnan(v[2]) | dr.isnan(v[3]), np.nan, w)
         om = dr.gather(mi.Float64, omega, task * _N_T + bt)
-        w = mi.Float64(w) * om
         dr.eval(w)
         # the weights' total per task, in numpy's pairwise order for 512 values
         base = tasks * B
         blocks = []
         for blk in range(B // 128):
             k0 = base + blk * 128
-            r = [dr.gather(mi.Float64, w, k0 + j) for j in range(8)]
+            r = [dr.gather(mi.Float, w, k0 + j) for j in range(8)]
             _, *r = dr.while_loop((mi.UInt32(1), *r), lambda i, *r: i < 16,
-                                  lambda i, *r: (i + 1, *[r[j] + dr.gather(mi.Float64, w, k0 + i * 8 + j)
+                                  lambda i, *r: (i + 1, *[r[j] + dr.gather(mi.Float, w, k0 + i * 8 + j)
                                                           for j in range(8)]))
             blocks.append(((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7])))
         while len(blocks) > 1:
@@ -282,15 +279,17 @@ class EarthAlbedo:
         dr.eval(tot)
 
         def share(w_, om_, tot_):
-            """A bin's probability (float64) from its weight, its solid angle and its task's total weight."""
-            return dr.select(tot_ > 0, (1 - _DEFENSIVE) * w_ / dr.select(tot_ > 0, tot_, 1.0) + _DEFENSIVE * om_, om_)
+            """A bin's probability (float64) from its weight and its task's total weight (float32, divided as numpy
+            divides float32 arrays) and its solid angle."""
+            return dr.select(tot_ > 0, mi.Float64(w_ * (1 - _DEFENSIVE) / dr.select(tot_ > 0, tot_, 1.0))
+                             + _DEFENSIVE * om_, om_)
 
         def share_at(i):
             """Bin ``i``'s probability of each task (the running sums': recomputed, not stored in float64)."""
             om_i = dr.gather(mi.Float64, omega, tasks * _N_T + i // _N_P)
-            return share(dr.gather(mi.Float64, w, base + i), om_i, tot)
+            return share(dr.gather(mi.Float, w, base + i), om_i, tot)
         # (cdf: a kernel's output of its own, every element of which the running sum below overwrites)
-        pmf, cdf = mi.Float(share(w, om, dr.gather(mi.Float64, tot, task))), mi.Float(om)
+        pmf, cdf = mi.Float(share(w, om, dr.gather(mi.Float, tot, task))), mi.Float(om)
         dr.eval(pmf, cdf)
         # the running sum, twice: its total, then each bin's share of it
         cond = lambda i, s: i < B  # noqa: E731

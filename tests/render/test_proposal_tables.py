@@ -1,7 +1,7 @@
 """The albedo proposal's PMF and CDF, built on the device (EarthAlbedo._proposal_tables), are numpy's bit for bit.
 
-The oracle: the tables' definition written in numpy (a bin's weight the largest of its four corners times the bin's
-solid angle, the weights normalised by their sum and mixed with the defensive share of the bins' solid angles, the uniform fallback
+The oracle: the tables' definition written in numpy (a bin's weight the largest of its four corners, the weights
+normalised by their float32 sum and mixed with the defensive share of the bins' solid angles, the uniform fallback
 for a task without weight, the float64 running sum divided by its last value), on random corner weights."""
 
 import numpy as np
@@ -21,9 +21,9 @@ B = _N_T * _N_P
 def _numpy_tables(f, tedge):
     fc = f.reshape(-1, _N_T + 1, _N_P + 1)
     corner = np.maximum(np.maximum(fc[:, :-1, :-1], fc[:, 1:, :-1]), np.maximum(fc[:, :-1, 1:], fc[:, 1:, 1:]))
-    omega = np.diff(tedge, axis=1) / _N_P
-    wbin = (corner * omega[:, :, None]).reshape(len(fc), -1)
+    wbin = corner.reshape(len(fc), -1)
     tot = wbin.sum(axis=1, keepdims=True)
+    omega = np.diff(tedge, axis=1) / _N_P
     a = (1 - _DEFENSIVE) * wbin
     a /= np.where(tot > 0, tot, 1.0)
     pmf = (a.reshape(-1, _N_T, _N_P) + (_DEFENSIVE * omega)[:, :, None]).reshape(len(fc), -1)

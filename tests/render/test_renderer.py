@@ -603,9 +603,9 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
     # error falling as n^(-1/_ALBEDO_POWER). Its promise is the target in expectation, not on every task: the final
     # se is an estimate from a round sized by another estimate, so se^2 / target^2 of a task exceeds 1 on a few
     # tasks. The oracle is that promise, pooled over the ~50 sized tasks (more samples than the first round's 256,
-    # fewer than the cap): mean (se / target)^2 <= 1 (0.42-0.50 over seeds 1-6, 51-57 tasks).
-    # Deliberately wrong input: the rule told the error falls as n^(-2) (power 0.5): 6-13 tasks are sized, too few
-    # samples each, and the mean reads 1.24-1.54 over seeds 1-6 and fails.
+    # fewer than the cap): mean (se / target)^2 <= 1 (0.45-0.51 over seeds 1-6).
+    # Deliberately wrong input: the rule told the error falls as n^(-2) (power 0.5): ~20 tasks are sized, too few
+    # samples each, and the mean reads 1.38-1.67 over seeds 1-6 and fails.
     # (Was: every task's se <= its target, which held for seed 3 by luck, at 0.999 on one task; cuda_ad_mono's
     # other float rounding put that task at > 1 on an H100.)
     from simcore.render import sampling
@@ -617,7 +617,7 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
     rend = Renderer(ds, mesh, reflectivity=np.full((180, 288), 0.3), variant=variant)
     sun, earth, rot = _orbitish_inputs(64, 2)
     res, q = _target_variance_ratio(rend, sun, earth, rot, seed=3)
-    assert len(q) >= (5 if wrong else 40)
+    assert len(q) >= (15 if wrong else 40)
     assert (q.mean() > 1) == wrong, q.mean()
     if wrong:
         return
