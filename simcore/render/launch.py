@@ -226,38 +226,22 @@ class Launcher:
         assignment, as a separate upload of each field rounded them)."""
         dr, mi = self._dr, self._mi
         T = len(t["key"])
-        layout, tables, fields = [], {}, []
-        nf = nu = 0
-        for name, v in t.items():
-            if v is None or name == "_packed":
-                continue
-            if name in _TABLES:
-                tables[name] = v                    # uploaded once for all the tasks (_tables)
-                continue
-            v = np.asarray(v)
-            if name in ("_f", "_u"):                # fields packed once for all the rounds (_pack)
-                integer = name == "_u"
-                at = nu if integer else nf
-                layout += [(n_, at + c, w, i_) for n_, c, w, i_ in t["_packed"] if i_ == integer]
-                parts = [(None, v, integer)]
-            elif name == "m":
-                parts = [(name, v.astype(np.uint32), True), ("inv_m", 1.0 / v, False), ("half_inv_m", 0.5 / v, False)]
-            else:
-                parts = [(name, v, v.dtype.kind in "iub")]
-            for name_, v_, integer in parts:
-                v_ = v_.reshape(T, -1)
-                fields.append((nu if integer else nf, v_.shape[1], integer, v_))
-                if name_ is not None:
-                    layout.append((name_, nu if integer else nf, v_.shape[1], integer))
-                if integer:
-                    nu += v_.shape[1]
-                else:
-                    nf += v_.shape[1]
+        tables = {k: v for k, v in t.items() if k in _TABLES and v is not None}   # uploaded once (_tables)
+        rest = {k: np.asarray(v) for k, v in t.items()
+                if v is not None and k not in _TABLES and k not in ("_f", "_u", "_packed")}
+        if "m" in rest:
+            m = rest.pop("m")
+            rest.update(m=m.astype(np.uint32), inv_m=1.0 / m, half_inv_m=0.5 / m)
+        # the fields not packed yet, then those packed once for all the rounds (_pack), side by side
+        blocks = [_pack(rest, skip=())] + ([t] if "_packed" in t else [])
+        layout, nf, nu = [], 0, 0
+        for blk in blocks:
+            layout += [(n_, c + (nu if i_ else nf), w, i_) for n_, c, w, i_ in blk["_packed"]]
+            nf, nu = nf + blk["_f"].shape[1], nu + blk["_u"].shape[1]
         # filled in place in Dr.Jit-safe buffers and handed over without another copy (simcore._llvm.host_buffer)
         f, u = host_buffer(T * nf, np.float32), host_buffer(T * nu, np.uint32)
-        f2, u2 = f.reshape(T, nf), u.reshape(T, nu)
-        for c, w, integer, v in fields:
-            (u2 if integer else f2)[:, c:c + w] = v
+        np.concatenate([blk["_f"] for blk in blocks], axis=1, out=f.reshape(T, nf))
+        np.concatenate([blk["_u"] for blk in blocks], axis=1, out=u.reshape(T, nu))
         tables["refl"] = self._refl_dr
         tables["refl_max"] = self._refl_max_dr
         if self._sea_dr is not None:
@@ -477,16 +461,16 @@ def _no_cycle_collection():
                 gc.enable()
 
 
-def _pack(t):
-    """Return the task dict ``t`` with its numpy fields (but ``m`` and the tables, ``_TABLES``) packed as
-    :meth:`Launcher._lanes` packs them, once: ``_f`` (T, nf) float32 and ``_u`` (T, nu) uint32, ``_packed`` naming their
-    columns ((field, first column, width, in _u), ...). A round then takes its tasks' rows of two arrays (:func:`_take`)
-    instead of every field's, and casts nothing (the values are those of packing each round: the same float32
-    rounding of the same float64 values)."""
+def _pack(t, skip=("m",)):
+    """Return the task dict ``t`` with its numpy fields (but those in ``skip`` and the tables, ``_TABLES``) packed as
+    the kernels read them (:meth:`Launcher._lanes`): ``_f`` (T, nf) float32 (rounded from float64 once, on
+    assignment) and ``_u`` (T, nu) uint32 (integer fields), ``_packed`` naming their columns ((field, first column,
+    width, in _u), ...). Packed once per estimator and batch (:meth:`Rounds._rounds`: ``m`` is set per round), a round
+    takes its tasks' rows of two arrays (:func:`_take`) instead of every field's, and casts nothing."""
     T = len(next(v for v in t.values() if isinstance(v, np.ndarray)))
     out, cols, nf, nu = {}, [], 0, 0
     for name, v in t.items():
-        if not isinstance(v, np.ndarray) or name in _TABLES or name == "m":
+        if not isinstance(v, np.ndarray) or name in _TABLES or name in skip:
             out[name] = v
             continue
         integer = v.dtype.kind in "iub"
