@@ -36,6 +36,75 @@ def disc_directions(sun_body, offsets):
     return d / np.linalg.norm(d, axis=2, keepdims=True)
 
 
+def smooth_disc_rule(radius_rad, rings=3):
+    """Return (13, 2) tangent-plane offsets (rad) and (13,) weights (sum 1): the centre and two rings of six points
+    (at 0 and 30 deg) with the same moments up to degree 7 as the ``rings`` equal-area rings of
+    :func:`solar_disc_offsets`: their means of r^2, r^4, r^6 and r^6 cos(6 phi) (the other moments up to degree 7
+    vanish for both by their six-fold symmetry). On a response smooth over the disc it gives the rings' average to
+    O(a^8) of its eighth derivatives (a the radius; docs/analytic_direct.md)."""
+    off = solar_disc_offsets(radius_rad, rings)
+    r2 = np.sum(off ** 2, axis=1)
+    m2, m4 = float(np.mean(r2)), float(np.mean(r2 ** 2))
+    c6 = float(np.mean(r2 ** 3 * np.cos(6.0 * np.arctan2(off[:, 1], off[:, 0]))))
+    p, q = 0.5 * (float(np.mean(r2 ** 3)) + c6), 0.5 * (float(np.mean(r2 ** 3)) - c6)   # W x^3, W' y^3
+    # with X = 1 / x, Y = 1 / y (x, y the rings' r^2): p X^2 + q Y^2 = m2 and p X + q Y = m4, Y = (m4 - p X) / q
+    roots = np.roots([p + p * p / q, -2.0 * p * m4 / q, m4 * m4 / q - m2]).real
+    X = roots.max()
+    Y = (m4 - p * X) / q
+    x, y = 1.0 / X, 1.0 / Y
+    wa, wb = p * X ** 3 / 6.0, q * Y ** 3 / 6.0
+    ang = np.pi / 3.0 * np.arange(6)
+    off = np.vstack([[0.0, 0.0], np.sqrt(x) * np.column_stack([np.cos(ang), np.sin(ang)]),
+                     np.sqrt(y) * np.column_stack([np.cos(ang + np.pi / 6), np.sin(ang + np.pi / 6)])])
+    return off, np.r_[1.0 - 6.0 * (wa + wb), np.full(6, wa), np.full(6, wb)]
+
+
+def _kink_planes(frames, resps):
+    """Return (K, P, 3): per diode, body-frame normals c of the planes c . d = 0 along which a
+    :class:`simcore.shapes.aperture.WellAperture`'s response has a kink: its horizon (n) and, along each wall
+    axis, every value of d_u / d_n (d_v / d_n) at which two of the lit rectangle's bounds
+    (:func:`simcore.shapes.aperture.lit_rectangle`: the diode's side and each rim's shifted side, linear in it)
+    meet, whichever of them binds there. Between them the response is a rational function of d, smooth. Rows of
+    other responses are NaN (no smooth rule for them); short rows repeat n."""
+    rows = []
+    for f, r in zip(np.asarray(frames, float), resps):
+        if type(r) is not _resp.WellAperture:
+            rows.append(np.full((1, 3), np.nan))
+            continue
+        hdx, hdy, ox1, oy1, h1, ox2, oy2, h2 = r.rims
+        planes = [f[2]]
+        for axis, (hd, o1, o2) in ((f[0], (hdx, ox1, ox2)), (f[1], (hdy, oy1, oy2))):
+            lower = [(-hd, 0.0), (-o1, -h1), (-o2, -h2)]             # a + b t, t = d_u / d_n (d_v / d_n)
+            upper = [(hd, 0.0), (o1, -h1), (o2, -h2)]
+            pairs = [(p, q) for i, p in enumerate(lower) for q in lower[i + 1:]]
+            pairs += [(p, q) for i, p in enumerate(upper) for q in upper[i + 1:]]
+            pairs += [(p, q) for p in lower for q in upper]
+            ties = {(a2 - a1) / (b1 - b2) for (a1, b1), (a2, b2) in pairs if b1 != b2}
+            planes += [axis - t * f[2] for t in sorted(ties)]
+        planes = np.array(planes)
+        rows.append(planes / np.linalg.norm(planes, axis=1, keepdims=True))
+    out = np.empty((len(rows), max(len(r) for r in rows), 3))
+    for k, r in enumerate(rows):
+        out[k] = r[0]
+        out[k, :len(r)] = r
+    return out
+
+
+# The smooth rule's difference from the 37 points grows as (a / d_n)^8 toward the diode's horizon (its derivatives
+# as 1 / d_n^k): it is used from d_n >= 0.25 on, where that is < 1e-13 of the response (docs/analytic_direct.md).
+_SMOOTH_MIN_COS = 0.25
+
+
+def _smooth_pairs(sun, diode, planes, radius_rad):
+    """Return (T,) bool: the pairs (Sun direction ``sun[t]`` (T, 3), diode ``diode[t]``) whose disc (every
+    direction within ``radius_rad`` of the Sun's centre) lies wholly in front of the diode and crosses none of
+    its kink planes (``planes`` (K, P, 3), unit normals, :func:`_kink_planes`): a plane c . d = 0 meets the
+    disc iff |s . c| <= sin(radius); and whose centre is :data:`_SMOOTH_MIN_COS` or more above its horizon."""
+    sc = np.einsum("tpj,tj->tp", planes[diode], sun)
+    with np.errstate(invalid="ignore"):
+        return (np.abs(sc) > np.sin(radius_rad) * (1.0 + 1e-9) + 1e-12).all(axis=1) & (sc[:, 0] > _SMOOTH_MIN_COS)
+
+
 # Responses known to read exactly 0 for every direction with d_n <= 0 (behind the diode's plane): for these the
 # direct Sun is evaluated only where part of the solar disc lies in front of the diode.
 _DARK_BEHIND = (_resp.CosineResponse, _resp.ReflectionResponse, _resp.Eq415Response, _resp.WellAperture,
@@ -226,36 +295,60 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         raise TypeError("body occlusion of the direct Sun needs the diodes' WellAperture or CircularWell responses")
     n_ep, K = sun_body.shape[0], len(frames)
     out = np.zeros((n_ep, K))
-    dirs, weights, partial_earth = _disc_sample(sun_body, sun_angular_radius_rad, rings, earth_body_m, radius_m)
     # Every disc point d has d . n <= (s . n + a) / |s + offset| for the disc's angular radius a.
     in_front = sun_body @ frames[:, 2].T > -(sun_angular_radius_rad + 1e-6)
     in_front |= np.array([not isinstance(r, _DARK_BEHIND) for r in resps])[None]
     diode, ep = np.nonzero(in_front.T)
     if ep.size == 0:
         return out
-    d = dirs[:, ep]
+    a = sun_angular_radius_rad
+    cut = np.zeros(n_ep, bool)
+    if earth_body_m is not None:
+        # where the Earth's limb cuts the disc too, the rules of the kinks below (unchanged) weigh the points
+        dist = np.linalg.norm(earth_body_m, axis=1)
+        sep = np.arccos(np.clip(np.einsum("nj,nj->n", sun_body, earth_body_m) / dist, -1.0, 1.0))
+        limb = np.arcsin(np.minimum(radius_m / dist, 1.0))
+        cut = np.abs(sep - limb) < a
+    below = _below_panel(sun_body, ep, diode, body, a)
+    if a > 0:
+        # A disc the Earth leaves whole, above the panel's plane (no box), over which the well's response is
+        # smooth: the 13-point rule of the 37 points' moments (:func:`smooth_disc_rule`; its outer ring reaches
+        # 1.007 a: the tests take its reach).
+        off, w = smooth_disc_rule(a, rings)
+        reach = max(a, float(np.max(np.hypot(off[:, 0], off[:, 1]))))
+        fast = _smooth_pairs(sun_body[ep], diode, _kink_planes(frames, resps), reach)
+        if earth_body_m is not None:
+            fast &= (sep > limb + reach * (1.0 + 1e-9) + 1e-12)[ep]       # no point of the rule behind the Earth
+        if below is not None:
+            fast &= ~_below_panel(sun_body, ep, diode, body, reach)
+        if fast.any():
+            f_ep, f_k = ep[fast], diode[fast]
+            resp7 = _pair_response(resps, frames, f_k, disc_directions(sun_body[f_ep], off))[1]
+            out[f_ep, f_k] = (w @ resp7) / float(w @ (1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))))
+            ep, diode = ep[~fast], diode[~fast]
+            below = None if below is None else below[~fast]
+            if ep.size == 0:
+                return out
+    rows, at = np.unique(ep, return_inverse=True)
+    dirs, weights, pe = _disc_sample(sun_body[rows], a, rings, None if earth_body_m is None else earth_body_m[rows],
+                                     radius_m)
+    partial_earth = np.zeros(n_ep, bool)
+    partial_earth[rows] = pe
+    d = dirs[:, at]
     lit, resp = _pair_response(resps, frames, diode, d)
     edge_probe = None
     if len(dirs) > 1:
         ang = 2.0 * np.pi * np.arange(32) / 32
-        edge_probe = disc_directions(sun_body, 0.999 * sun_angular_radius_rad
-                                      * np.column_stack([np.cos(ang), np.sin(ang)]))[:, ep]
-    out[ep, diode], edge, steady, inside = _disc_mean(d, weights[:, ep], resp, diode, frames, resps, body, rings,
-                                                      edge_probe, _below_panel(sun_body, ep, diode, body,
-                                                                               sun_angular_radius_rad))
+        edge_probe = disc_directions(sun_body[ep], 0.999 * a * np.column_stack([np.cos(ang), np.sin(ang)]))
+    out[ep, diode], edge, steady, inside = _disc_mean(d, weights[:, at], resp, diode, frames, resps, body, rings,
+                                                      edge_probe, below)
     if len(dirs) == 1 or refine_rings <= rings:
         return out
     # The diode's own horizon across the disc: a sliver of the disc above it can lie beyond every point of
     # the 397-point rule (rendered 5e-4 W/m^2 where it gave 0, 5 standard errors, on a bare tilt0_fov90 day).
     horizon = np.abs(np.einsum("tj,tj->t", sun_body[ep], frames[diode, 2])) < np.sin(sun_angular_radius_rad)
     edge |= horizon & (edge | ~np.isnan(steady) | (body is None))   # (an edge across the interior: 37 points)
-    cut = np.zeros(n_ep, bool)
-    if earth_body_m is not None:
-        # where the Earth's limb cuts the disc too, the rules of the kinks below (unchanged) weigh the points
-        dist = np.linalg.norm(earth_body_m, axis=1)
-        sep = np.arccos(np.clip(np.einsum("nj,nj->n", sun_body, earth_body_m) / dist, -1.0, 1.0))
-        cut = np.abs(sep - np.arcsin(np.minimum(radius_m / dist, 1.0))) < sun_angular_radius_rad
-        edge &= ~cut[ep]
+    edge &= ~cut[ep]
     if edge.any():
         # the body's shadow edge across the disc: the product quadrature (:data:`_EDGE_RADIAL`)
         e_ep, e_k = ep[edge], diode[edge]
@@ -264,8 +357,8 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         ep, diode, lit, resp, inside = ep[~edge], diode[~edge], lit[:, ~edge], resp[:, ~edge], inside[~edge]
     # Kinks: probe the disc's very edge too (the quadrature rings stop short of it).
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
-    rim = disc_directions(sun_body, sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
-    lit_rim, resp_rim = _pair_response(resps, frames, diode, rim[:, ep])
+    rim = disc_directions(sun_body[ep], sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
+    lit_rim, resp_rim = _pair_response(resps, frames, diode, rim)
     lit_any = (resp > 0).any(axis=0) | (resp_rim > 0).any(axis=0)
     kink = lit_any & ((resp == 0).any(axis=0) | (resp_rim == 0).any(axis=0) | partial_earth[ep])
     kink |= inside & ~cut[ep]   # the box's edge across a clear disc's interior: 397 points (1024: ~9 ms a pair)
