@@ -8,7 +8,7 @@ Gauss-Legendre x azimuth product rule where the box's shadow edge reaches only t
 import numpy as np
 
 from simcore.radiometry import response as _resp
-from simcore.shapes.occlusion import pair_visibility
+from simcore.shapes.occlusion import disc_box_shadow, pair_visibility
 
 
 def solar_disc_offsets(radius_rad, rings=3):
@@ -311,24 +311,32 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         cut = np.abs(sep - limb) < a
     below = _below_panel(sun_body, ep, diode, body, a)
     if a > 0:
-        # A disc the Earth leaves whole, above the panel's plane (no box), over which the well's response is
-        # smooth: the 13-point rule of the 37 points' moments (:func:`smooth_disc_rule`; its outer ring reaches
-        # 1.007 a: the tests take its reach).
         off, w = smooth_disc_rule(a, rings)
-        reach = max(a, float(np.max(np.hypot(off[:, 0], off[:, 1]))))
-        fast = _smooth_pairs(sun_body[ep], diode, _kink_planes(frames, resps), reach)
+        reach = max(a, float(np.max(np.hypot(off[:, 0], off[:, 1]))))   # (its outer ring: 1.007 a)
+        boxed = np.zeros(ep.size, bool)
+        if body is not None:
+            # Where the box hides the whole diode from the whole disc the response is 0; where it hides none of it,
+            # the smooth rule below may take the pair (the others keep the box's probes: their visibility's
+            # rounding, 1 +- 1e-12, may send a kink across the disc to the 397 points).
+            half_diodes = np.array([[r.diode_x_m / 2, r.diode_y_m / 2] for r in resps])
+            shade = disc_box_shadow(sun_body[ep], diode, frames, half_diodes, body.positions_m, body.panel_normals,
+                                    body.half_m, reach)
+            keep = shade != 1
+            ep, diode, below, shade = ep[keep], diode[keep], below[keep], shade[keep]
+            boxed = _below_panel(sun_body, ep, diode, body, reach) & (shade != -1)
+        # A disc the Earth leaves whole, where the box cannot shade the diode and over which the well's response is
+        # smooth: the 13-point rule of the 37 points' moments (:func:`smooth_disc_rule`).
+        fast = _smooth_pairs(sun_body[ep], diode, _kink_planes(frames, resps), reach) & ~boxed
         if earth_body_m is not None:
             fast &= (sep > limb + reach * (1.0 + 1e-9) + 1e-12)[ep]       # no point of the rule behind the Earth
-        if below is not None:
-            fast &= ~_below_panel(sun_body, ep, diode, body, reach)
         if fast.any():
             f_ep, f_k = ep[fast], diode[fast]
             resp7 = _pair_response(resps, frames, f_k, disc_directions(sun_body[f_ep], off))[1]
             out[f_ep, f_k] = (w @ resp7) / float(w @ (1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))))
             ep, diode = ep[~fast], diode[~fast]
             below = None if below is None else below[~fast]
-            if ep.size == 0:
-                return out
+        if ep.size == 0:
+            return out
     rows, at = np.unique(ep, return_inverse=True)
     dirs, weights, pe = _disc_sample(sun_body[rows], a, rings, None if earth_body_m is None else earth_body_m[rows],
                                      radius_m)
@@ -355,6 +363,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         out[e_ep, e_k] = _edge_mean(sun_body[e_ep], sun_angular_radius_rad, e_k, frames, resps, body,
                                     np.where(horizon, steady, np.nan)[edge])
         ep, diode, lit, resp, inside = ep[~edge], diode[~edge], lit[:, ~edge], resp[:, ~edge], inside[~edge]
+        below = None if below is None else below[~edge]
     # Kinks: probe the disc's very edge too (the quadrature rings stop short of it).
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
     rim = disc_directions(sun_body[ep], sun_angular_radius_rad * np.column_stack([np.cos(ang), np.sin(ang)]))
@@ -367,12 +376,12 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     kink |= full & ((lit < 1).any(axis=0) | (lit_rim < 1).any(axis=0))
     if not kink.any():
         return out
-    ep, diode = ep[kink], diode[kink]
+    ep, diode, below = ep[kink], diode[kink], None if below is None else below[kink]
     rows, at = np.unique(ep, return_inverse=True)
     fine_dirs, fine_weights, _ = _disc_sample(sun_body[rows], sun_angular_radius_rad, refine_rings,
                                               None if earth_body_m is None else earth_body_m[rows], radius_m)
     d = fine_dirs[:, at]
     out[ep, diode] = _disc_mean(d, fine_weights[:, at], _pair_response(resps, frames, diode, d)[1], diode,
                                 frames, resps, body, refine_rings,
-                                below=_below_panel(sun_body, ep, diode, body, sun_angular_radius_rad))[0]
+                                below=below)[0]
     return out

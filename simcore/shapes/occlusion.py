@@ -268,3 +268,52 @@ def pair_visibility(apertures, frames, positions_m, panel_normals, diode, d_body
     if t.size:
         vis[t] = _visibility_below(_table(_aperture_params(apertures), frames, positions_m, half_m), k[t], d[t])
     return vis
+
+
+def disc_box_shadow(sun, diode, frames, half_diodes, positions_m, panel_normals, half_m, reach_rad):
+    """Return (T,) int8 for T (Sun direction ``sun[t]`` (T, 3), diode ``diode[t]``) pairs: 1 where the body box
+    hides the whole diode from every direction within ``reach_rad`` of the Sun's centre, -1 where it hides none of
+    it from any, 0 where this cannot tell (the box's kernel decides there).
+
+    ``frames`` (K, 3, 3) rows (u, v, n), ``half_diodes`` (K, 2) the diodes' half sides along u and v,
+    ``positions_m`` (K, 3) their centres, ``panel_normals`` (K, 3) their panels' outward normals, ``half_m`` the
+    box's half extents. It applies where the panel's normal is a box axis (the face p . Y = half_p), every corner
+    of the diode lies above that face and within its sides, and every direction of the disc runs below the face's
+    plane: a ray from such a point X toward d then meets the box iff it crosses the face's plane within the face
+    (it stays outside the box until it reaches the plane; a side it crossed outward it does not cross back), at
+    C = X + h d / (-d . p) (h the height of X above the face): affine in X, so the diode's rays all cross within
+    the face iff its four corners' do, and none do where all four cross beyond one side of it. Over the disc
+    (|d - s| <= delta = 2 sin(reach / 2)) C moves by at most 2 h delta / ((-s . p - delta)(-s . p)) from the
+    centre's; a corner counts as within (beyond) the face only with that margin."""
+    s = np.asarray(sun, float).reshape(-1, 3)
+    k = np.asarray(diode, dtype=np.int64).reshape(-1)
+    out = np.zeros(len(s), np.int8)
+    frames = np.asarray(frames, float)
+    normals = np.asarray(panel_normals, float)
+    half = np.asarray(half_m, float)
+    axis = np.argmax(np.abs(normals), axis=1)
+    sign = np.sign(normals[np.arange(len(normals)), axis])
+    hd = np.asarray(half_diodes, float)
+    corners = (np.asarray(positions_m, float)[:, None]
+               + np.array([-1, 1, -1, 1])[None, :, None] * hd[:, None, :1] * frames[:, None, 0]
+               + np.array([-1, -1, 1, 1])[None, :, None] * hd[:, None, 1:] * frames[:, None, 1])   # (K, 4, 3)
+    height = sign[:, None] * corners[np.arange(len(axis)), :, axis] - half[axis][:, None]            # (K, 4)
+    lateral = np.ones((len(axis), 3), bool)
+    lateral[np.arange(len(axis)), axis] = False
+    within = np.all(np.where(lateral[:, None], np.abs(corners) <= half, True), axis=(1, 2))
+    ok = (np.abs(np.abs(normals[np.arange(len(axis)), axis]) - 1.0) < 1e-12) & (height > 0).all(axis=1) & within
+    delta = 2.0 * np.sin(0.5 * reach_rad)
+    sp = -np.einsum("tj,tj->t", s, normals[k])               # -s . p
+    t = np.flatnonzero(ok[k] & (sp > 2.0 * delta))
+    if t.size == 0:
+        return out
+    kt, st, spt = k[t], s[t], sp[t]
+    h = height[kt]                                                          # (T, 4)
+    cross = corners[kt] + (h / spt[:, None])[..., None] * st[:, None]       # (T, 4, 3)
+    margin = (2.0 * h * delta / ((spt - delta) * spt)[:, None])[..., None] + 1e-9
+    lat = lateral[kt][:, None]                                              # (T, 1, 3)
+    inside = np.all(np.where(lat, np.abs(cross) + margin < half, True), axis=(1, 2))
+    beyond = np.any(np.all(np.where(lat, cross - margin > half, False), axis=1)
+                    | np.all(np.where(lat, -cross - margin > half, False), axis=1), axis=1)
+    out[t] = np.where(inside, 1, np.where(beyond, -1, 0))
+    return out
