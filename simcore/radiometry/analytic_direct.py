@@ -95,14 +95,14 @@ def _kink_planes(frames, resps):
 _SMOOTH_MIN_COS = 0.25
 
 
-def _smooth_pairs(sun, diode, planes, radius_rad):
+def _smooth_pairs(sun, diode, planes, radius_rad, min_cos=_SMOOTH_MIN_COS):
     """Return (T,) bool: the pairs (Sun direction ``sun[t]`` (T, 3), diode ``diode[t]``) whose disc (every
     direction within ``radius_rad`` of the Sun's centre) lies wholly in front of the diode and crosses none of
     its kink planes (``planes`` (K, P, 3), unit normals, :func:`_kink_planes`): a plane c . d = 0 meets the
-    disc iff |s . c| <= sin(radius); and whose centre is :data:`_SMOOTH_MIN_COS` or more above its horizon."""
+    disc iff |s . c| <= sin(radius); and whose centre has d_n > ``min_cos``."""
     sc = np.einsum("tpj,tj->tp", planes[diode], sun)
     with np.errstate(invalid="ignore"):
-        return (np.abs(sc) > np.sin(radius_rad) * (1.0 + 1e-9) + 1e-12).all(axis=1) & (sc[:, 0] > _SMOOTH_MIN_COS)
+        return (np.abs(sc) > np.sin(radius_rad) * (1.0 + 1e-9) + 1e-12).all(axis=1) & (sc[:, 0] > min_cos)
 
 
 # Responses known to read exactly 0 for every direction with d_n <= 0 (behind the diode's plane): for these the
@@ -151,7 +151,7 @@ def _pair_response(resps, frames, diode, d):
     return lit, resp
 
 
-def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None, below=None):
+def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None, below=None, replaced=None):
     """Return ((T,), (T,) bool): the weighted mean over the disc points of each (epoch, diode) pair, ``dirs``
     (M, T, 3), ``weights`` and ``resp`` (M, T), diode ``diode[t]``, times the body box's visibility; and
     whether the box's shadow edge reaches only the disc's ``rim`` (directions (R, T, 3), if given): the
@@ -159,7 +159,9 @@ def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None,
     points can see); (T,) the box's visibility where all those probes agree on it (NaN elsewhere); and
     whether they saw the edge cross the disc's interior. ``below`` (T,) bool, if given: the pairs with some
     of ``dirs`` or ``rim`` possibly below the diode's panel plane; the others' directions all read 1 (what
-    :func:`pair_visibility` gives above the plane), without asking it."""
+    :func:`pair_visibility` gives above the plane), without asking it. ``replaced`` (T,) bool, if given: the pairs
+    whose mean the caller replaces wherever the probes see the box's edge cross the disc (their mean there is
+    then the probes' visibility times the response, not traced point by point)."""
     m, n = resp.shape
     if body is None:
         return np.einsum("mn,mn->n", weights, resp), np.zeros(n, bool), np.ones(n), np.zeros(n, bool)
@@ -197,8 +199,9 @@ def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None,
         s_all, lo_all, hi_all, _ = crossing(v_probe)
         rim_only = ~edge & (hi_all > 0) & s_all & ((hi_all > lo_all) | ((lo_all > 0) & (lo_all < 1)))
     v_all = np.broadcast_to(np.where(seen, lo, 1.0), resp.shape).copy()
-    if edge.any() and m > 1:
-        cols = np.flatnonzero(edge)                        # every disc point of the edge pairs, in one batch
+    traced = edge if replaced is None else edge & ~replaced
+    if traced.any() and m > 1:
+        cols = np.flatnonzero(traced)                      # every disc point of the edge pairs, in one batch
         v_all[:, cols] = vis_pairs(cols, dirs)[:, cols]
     mean = np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0))
     # where every probe agrees, the box's visibility over the whole disc (1 where undefined)
@@ -260,10 +263,11 @@ def _edge_mean(sun_body, radius_rad, diode, frames, resps, body, steady=None):
         outer = np.flatnonzero(np.hypot(off[:, 0], off[:, 1]) >= 0.85 * radius_rad)
         inner = np.setdiff1d(np.arange(len(d)), outer)
         v = np.empty((len(d), t.size))
-        v[inner] = pair_visibility(resps, frames, body.positions_m, body.panel_normals, diode[t],
-                                   d[0, t] * 0 + sun_body[t], body.half_m)[None]
-        v[outer] = pair_visibility(resps, frames, body.positions_m, body.panel_normals, np.tile(diode[t], len(outer)),
-                                   d[outer][:, t].reshape(-1, 3), body.half_m).reshape(len(outer), t.size)
+        probe = np.concatenate([d[0, t] * 0 + sun_body[t], d[outer][:, t].reshape(-1, 3)])     # one kernel call
+        vp = pair_visibility(resps, frames, body.positions_m, body.panel_normals, np.tile(diode[t], len(outer) + 1),
+                             probe, body.half_m)
+        v[inner] = vp[:t.size][None]
+        v[outer] = vp[t.size:].reshape(len(outer), t.size)
         out[t] = np.einsum("mn,mn->n", wt[:, t], resp[:, t] * np.nan_to_num(v, nan=1.0))
     return out
 
@@ -326,15 +330,25 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
             boxed = _below_panel(sun_body, ep, diode, body, reach) & (shade != -1)
         # A disc the Earth leaves whole, where the box cannot shade the diode and over which the well's response is
         # smooth: the 13-point rule of the 37 points' moments (:func:`smooth_disc_rule`).
-        fast = _smooth_pairs(sun_body[ep], diode, _kink_planes(frames, resps), reach) & ~boxed
+        planes = _kink_planes(frames, resps)
+        smooth = _smooth_pairs(sun_body[ep], diode, planes, reach, 0.0) & ~boxed
         if earth_body_m is not None:
-            fast &= (sep > limb + reach * (1.0 + 1e-9) + 1e-12)[ep]       # no point of the rule behind the Earth
+            smooth &= (sep > limb + reach * (1.0 + 1e-9) + 1e-12)[ep]     # no point of the rules behind the Earth
+        fast = smooth & _smooth_pairs(sun_body[ep], diode, planes, reach)
         if fast.any():
             f_ep, f_k = ep[fast], diode[fast]
             resp7 = _pair_response(resps, frames, f_k, disc_directions(sun_body[f_ep], off))[1]
             out[f_ep, f_k] = (w @ resp7) / float(w @ (1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))))
-            ep, diode = ep[~fast], diode[~fast]
-            below = None if below is None else below[~fast]
+        plain = smooth & ~fast
+        if plain.any():
+            # smooth, but nearer the horizon: the 37 points alone (what the steps below give them: no kink to find)
+            p_ep, p_k = ep[plain], diode[plain]
+            rows, at = np.unique(p_ep, return_inverse=True)
+            dirs, weights, _ = _disc_sample(sun_body[rows], a, rings)
+            d = dirs[:, at]
+            out[p_ep, p_k] = np.einsum("mn,mn->n", weights[:, at], _pair_response(resps, frames, p_k, d)[1])
+        ep, diode = ep[~smooth], diode[~smooth]
+        below = None if below is None else below[~smooth]
         if ep.size == 0:
             return out
     rows, at = np.unique(ep, return_inverse=True)
@@ -349,7 +363,8 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         ang = 2.0 * np.pi * np.arange(32) / 32
         edge_probe = disc_directions(sun_body[ep], 0.999 * a * np.column_stack([np.cos(ang), np.sin(ang)]))
     out[ep, diode], edge, steady, inside = _disc_mean(d, weights[:, at], resp, diode, frames, resps, body, rings,
-                                                      edge_probe, below)
+                                                      edge_probe, below,
+                                                      ~cut[ep] if len(dirs) > 1 and refine_rings > rings else None)
     if len(dirs) == 1 or refine_rings <= rings:
         return out
     # The diode's own horizon across the disc: a sliver of the disc above it can lie beyond every point of
