@@ -41,7 +41,7 @@ def smooth_disc_rule(radius_rad, rings=3):
     (at 0 and 30 deg) with the same moments up to degree 7 as the ``rings`` equal-area rings of
     :func:`solar_disc_offsets`: their means of r^2, r^4, r^6 and r^6 cos(6 phi) (the other moments up to degree 7
     vanish for both by their six-fold symmetry). On a response smooth over the disc it gives the rings' average to
-    O(a^8) of its eighth derivatives (a the radius; docs/analytic_direct.md)."""
+    O(a^8) of its eighth derivatives (a the radius; docs/validation.md)."""
     off = solar_disc_offsets(radius_rad, rings)
     r2 = np.sum(off ** 2, axis=1)
     m2, m4 = float(np.mean(r2)), float(np.mean(r2 ** 2))
@@ -91,7 +91,7 @@ def _kink_planes(frames, resps):
 
 
 # The smooth rule's difference from the 37 points grows as (a / d_n)^8 toward the diode's horizon (its derivatives
-# as 1 / d_n^k): it is used from d_n >= 0.25 on, where that is < 1e-13 of the response (docs/analytic_direct.md).
+# as 1 / d_n^k): it is used from d_n >= 0.25 on, where that is < 1e-13 of the response (docs/validation.md).
 _SMOOTH_MIN_COS = 0.25
 
 
