@@ -1,8 +1,9 @@
 """The analytic direct Sun on each diode: the aperture response times the body box's visibility, averaged over
 the solar disc (and the part of it the Earth leaves visible), on (epoch, diode) pairs.
 
-The quadratures and where each applies (37 equal-area points; 397 where a kink crosses the disc; a
-Gauss-Legendre x azimuth product rule where the box's shadow edge reaches only the disc's rim) are described at
+The quadratures and where each applies (13 points where the response is smooth over the disc; 37 equal-area
+points; 397 where a kink crosses the disc; a Gauss-Legendre x azimuth product rule where the box's shadow edge
+reaches only the disc's rim) are described at
 :func:`_direct_response`; :func:`simcore.radiometry.analytic.diode_irradiance` is the entry point.
 """
 import numpy as np
@@ -290,7 +291,10 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
 
     The work runs on (epoch, diode) pairs: only those with part of the disc in front of the diode
     (the others read exactly 0 for the responses of :mod:`simcore.radiometry.response` and wells), and
-    the 397-point average only on the pairs with a kink.
+    the 397-point average only on the pairs with a kink. Before all that, pairs the body box hides whole over the
+    whole disc read 0 (:func:`simcore.shapes.occlusion.disc_box_shadow`), and pairs whose well response is smooth
+    over it (:func:`_smooth_pairs`), with no box shadow and no Earth limb across it, take the 13 points of
+    :func:`smooth_disc_rule` (d_n >= :data:`_SMOOTH_MIN_COS`) or the 37 points alone.
     """
     # (a round well's box visibility is that of the square inscribed in its rim, CircularWell.rims: exact where
     # the box cannot shade the diode, the Sun above its panel's plane; elsewhere the check leaves it out,
