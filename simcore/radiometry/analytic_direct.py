@@ -66,7 +66,7 @@ def _kink_planes(frames, resps):
     axis, every value of d_u / d_n (d_v / d_n) at which two of the lit rectangle's bounds
     (:func:`simcore.shapes.aperture.lit_rectangle`: the diode's side and each rim's shifted side, linear in it)
     meet, whichever of them binds there. Between them the response is a rational function of d, smooth. Rows of
-    other responses are NaN (no smooth rule for them); short rows repeat n."""
+    other responses are NaN (no smooth rule for them); short rows repeat their last plane."""
     rows = []
     for f, r in zip(np.asarray(frames, float), resps):
         if type(r) is not _resp.WellAperture:
@@ -86,7 +86,7 @@ def _kink_planes(frames, resps):
         rows.append(planes / np.linalg.norm(planes, axis=1, keepdims=True))
     out = np.empty((len(rows), max(len(r) for r in rows), 3))
     for k, r in enumerate(rows):
-        out[k] = r[0]
+        out[k] = r[-1]
         out[k, :len(r)] = r
     return out
 
@@ -100,10 +100,12 @@ def _smooth_pairs(sun, diode, planes, radius_rad, min_cos=_SMOOTH_MIN_COS):
     """Return (T,) bool: the pairs (Sun direction ``sun[t]`` (T, 3), diode ``diode[t]``) whose disc (every
     direction within ``radius_rad`` of the Sun's centre) lies wholly in front of the diode and crosses none of
     its kink planes (``planes`` (K, P, 3), unit normals, :func:`_kink_planes`): a plane c . d = 0 meets the
-    disc iff |s . c| <= sin(radius); and whose centre has d_n > ``min_cos``."""
+    disc iff |s . c| <= sin(radius); and whose centre has d_n > ``min_cos`` (-inf: any; ``planes`` then need not
+    start with the horizon's)."""
     sc = np.einsum("tpj,tj->tp", planes[diode], sun)
     with np.errstate(invalid="ignore"):
-        return (np.abs(sc) > np.sin(radius_rad) * (1.0 + 1e-9) + 1e-12).all(axis=1) & (sc[:, 0] > min_cos)
+        clear = (np.abs(sc) > np.sin(radius_rad) * (1.0 + 1e-9) + 1e-12).all(axis=1)
+    return clear if min_cos == -np.inf else clear & (sc[:, 0] > min_cos)
 
 
 # Responses known to read exactly 0 for every direction with d_n <= 0 (behind the diode's plane): for these the
@@ -321,6 +323,14 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     if a > 0:
         off, w = smooth_disc_rule(a, rings)
         reach = max(a, float(np.max(np.hypot(off[:, 0], off[:, 1]))))   # (its outer ring: 1.007 a)
+        planes = _kink_planes(frames, resps)
+        # A well that lets no light through at the disc's centre, with none of its kink planes but the horizon
+        # across the disc, lets none through at any of the disc's points in front of the diode: 0, box or not.
+        dark = _smooth_pairs(sun_body[ep], diode, planes[:, 1:], reach, -np.inf)
+        dark &= np.einsum("tj,tj->t", sun_body[ep], frames[diode, 2]) > 0
+        if dark.any():
+            dark[dark] = _pair_response(resps, frames, diode[dark], sun_body[ep[dark]][None])[1][0] == 0
+            ep, diode, below = ep[~dark], diode[~dark], None if below is None else below[~dark]
         boxed = np.zeros(ep.size, bool)
         if body is not None:
             # Where the box hides the whole diode from the whole disc the response is 0; where it hides none of it,
@@ -334,7 +344,6 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
             boxed = _below_panel(sun_body, ep, diode, body, reach) & (shade != -1)
         # A disc the Earth leaves whole, where the box cannot shade the diode and over which the well's response is
         # smooth: the 13-point rule of the 37 points' moments (:func:`smooth_disc_rule`).
-        planes = _kink_planes(frames, resps)
         smooth = _smooth_pairs(sun_body[ep], diode, planes, reach, 0.0) & ~boxed
         if earth_body_m is not None:
             smooth &= (sep > limb + reach * (1.0 + 1e-9) + 1e-12)[ep]     # no point of the rules behind the Earth

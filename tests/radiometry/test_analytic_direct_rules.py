@@ -103,6 +103,17 @@ def test_smooth_pairs_see_one_piece_of_the_response_over_the_whole_disc(config, 
         one_piece[t] = (b == b[:1]).all(axis=(0, 2))
     assert not (smooth & ~one_piece).any()
     assert smooth.sum() > 500 and (~one_piece).sum() > 200          # both kinds were there
+    # A well dark at the disc's centre with no kink plane but the horizon across the disc is dark at every point of
+    # the disc in front of the diode (the pairs _direct_response sets to 0 without more ado).
+    pre = _smooth_pairs(sun, diode, planes[:, 1:], reach, -np.inf)
+    dark_everywhere = np.empty(len(sun), bool)
+    centre_dark = np.empty(len(sun), bool)
+    for k in range(K):
+        t = np.flatnonzero(diode == k)
+        centre_dark[t] = resps[k].response(sun[t] @ frames[k].T) == 0
+        dark_everywhere[t] = (resps[k].response(disc_directions(sun[t], dense) @ frames[k].T) == 0).all(axis=0)
+    assert not (pre & centre_dark & ~dark_everywhere).any()
+    assert (pre & centre_dark).sum() > 50 and (centre_dark & ~dark_everywhere).sum() > 20
 
 
 @pytest.mark.parametrize("config", ["tilt20_fov70", "tilt25_fov75"])
