@@ -192,8 +192,11 @@ def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None,
     # disc there alone. Where the well lets no light through, visibility is undefined (NaN).
     n_ring = 6 * rings
     probe = [0] + list(range(m - n_ring, m, max(rings, 1))) if m > 1 else [0]
-    pd = dirs[probe] if rim is None else np.concatenate([dirs[probe], rim])
-    v_probe = vis_pairs(np.arange(n), pd)
+    # Without rim probes (the 397 points, where nearly every pair the box may shade has its edge across the disc)
+    # every point is traced at once, the probes among them: one kernel call, the same numbers.
+    v_full = vis_pairs(np.arange(n), dirs) if rim is None and m > 1 else None
+    v_probe = v_full[probe] if v_full is not None else vis_pairs(np.arange(n), dirs[probe] if rim is None else
+                                                                 np.concatenate([dirs[probe], rim]))
     seen, lo, hi, cross = crossing(v_probe[:len(probe)])
     edge = (resp > 0).any(axis=0) & cross
     rim_only = np.zeros(n, bool)
@@ -205,7 +208,7 @@ def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None,
     traced = edge if replaced is None else edge & ~replaced
     if traced.any() and m > 1:
         cols = np.flatnonzero(traced)                      # every disc point of the edge pairs, in one batch
-        v_all[:, cols] = vis_pairs(cols, dirs)[:, cols]
+        v_all[:, cols] = (vis_pairs(cols, dirs) if v_full is None else v_full)[:, cols]
     mean = np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0))
     # where every probe agrees, the box's visibility over the whole disc (1 where undefined)
     steady = np.where(~(edge | rim_only) & seen, lo, np.nan) if rim is not None else np.full(n, np.nan)
