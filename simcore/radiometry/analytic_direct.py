@@ -330,18 +330,20 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         # A well that lets no light through at the disc's centre, with none of its kink planes but the horizon
         # across the disc, lets none through at any of the disc's points in front of the diode: 0, box or not.
         dark = _smooth_pairs(sun_body[ep], diode, planes[:, 1:], reach, -np.inf)
-        dark &= np.einsum("tj,tj->t", sun_body[ep], frames[diode, 2]) > 0
+        dark &= (np.einsum("tj,tj->t", sun_body[ep], frames[diode, 2]) > 0) & np.isfinite(planes[diode, 0, 0])
         if dark.any():
             dark[dark] = _pair_response(resps, frames, diode[dark], sun_body[ep[dark]][None])[1][0] == 0
             ep, diode, below = ep[~dark], diode[~dark], None if below is None else below[~dark]
         boxed = np.zeros(ep.size, bool)
         if body is not None:
-            # Where the box hides the whole diode from the whole disc the response is 0; where it hides none of it,
-            # the smooth rule below may take the pair (the others keep the box's probes: their visibility's
-            # rounding, 1 +- 1e-12, may send a kink across the disc to the 397 points).
+            # Where the box hides the whole diode from the whole disc the response is 0 (rectangular wells); where it
+            # hides none of it, the smooth rule below may take the pair (the others keep the box's probes: their
+            # visibility's rounding, 1 +- 1e-12, may send a kink across the disc to the 397 points).
             half_diodes = np.array([[r.diode_x_m / 2, r.diode_y_m / 2] for r in resps])
             shade = disc_box_shadow(sun_body[ep], diode, frames, half_diodes, body.positions_m, body.panel_normals,
                                     body.half_m, reach)
+            # (round wells keep the model's inscribed square, CircularWell.rims: the check leaves them out there)
+            shade[~np.isfinite(planes[diode, 0, 0])] = 0
             keep = shade != 1
             ep, diode, below, shade = ep[keep], diode[keep], below[keep], shade[keep]
             boxed = _below_panel(sun_body, ep, diode, body, reach) & (shade != -1)
