@@ -327,12 +327,18 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         off, w = smooth_disc_rule(a, rings)
         reach = max(a, float(np.max(np.hypot(off[:, 0], off[:, 1]))))   # (its outer ring: 1.007 a)
         planes = _kink_planes(frames, resps)
-        # A well that lets no light through at the disc's centre, with none of its kink planes but the horizon
-        # across the disc, lets none through at any of the disc's points in front of the diode: 0, box or not.
-        dark = _smooth_pairs(sun_body[ep], diode, planes[:, 1:], reach, -np.inf)
-        dark &= (np.einsum("tj,tj->t", sun_body[ep], frames[diode, 2]) > 0) & np.isfinite(planes[diode, 0, 0])
+        # A well that lets no light through at one point of the disc in front of the diode (its centre, or where
+        # the horizon crosses the disc, a point 0.999 a toward the normal), with none of its kink planes but the
+        # horizon across the disc, lets none through at any point of the disc in front of it: 0, box or not.
+        dark = _smooth_pairs(sun_body[ep], diode, planes[:, 1:], reach, -np.inf) & np.isfinite(planes[diode, 0, 0])
         if dark.any():
-            dark[dark] = _pair_response(resps, frames, diode[dark], sun_body[ep[dark]][None])[1][0] == 0
+            s, n = sun_body[ep[dark]], frames[diode[dark], 2]
+            sn = np.einsum("tj,tj->t", s, n)
+            perp = n - sn[:, None] * s
+            norm = np.linalg.norm(perp, axis=1)
+            b = 0.999 * a
+            at = np.where((sn > 0)[:, None], s, np.cos(b) * s + np.sin(b) * perp / np.maximum(norm, 1e-300)[:, None])
+            dark[dark] = (np.einsum("tj,tj->t", at, n) > 0) & (_pair_response(resps, frames, diode[dark], at[None])[1][0] == 0)
             ep, diode, below = ep[~dark], diode[~dark], None if below is None else below[~dark]
         boxed = np.zeros(ep.size, bool)
         if body is not None:

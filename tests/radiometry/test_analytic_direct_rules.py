@@ -183,3 +183,28 @@ def test_the_box_shadow_over_a_whole_disc_against_rays(config, rng):
     # where the diode is not over its panel's face (here moved beyond the box's side) nothing is decided
     moved = body.positions_m + 0.2 * np.sign(body.positions_m) * (1 - np.abs(body.panel_normals))
     assert not disc_box_shadow(sun, diode, frames, half_diodes, moved, body.panel_normals, body.half_m, reach).any()
+
+
+def test_discs_across_a_wells_horizon_read_0_only_where_every_point_is_dark(rng):
+    # The short cut sets such pairs to 0 from one point of the disc in front of the diode; the oracle: 4921 points
+    # and 256 on the rim, each one's response (a well's, its lit rectangle's closed form).
+    cfg = SatelliteConfig.load("tilt20_fov70")
+    frames, resps = np.asarray(cfg.frames), list(cfg.apertures)
+    resps[2] = resps[9] = WellAperture.bare()                            # lit up to the horizon
+    sun, diode = [], []
+    for k in range(len(frames)):
+        u, v, n = frames[k]
+        az = rng.uniform(0, 2 * np.pi, 60)
+        p = np.pi / 2 + rng.uniform(-1.5, 1.5, 60) * SUN_RADIUS
+        sun.append(np.sin(p)[:, None] * (np.cos(az)[:, None] * u + np.sin(az)[:, None] * v) + np.cos(p)[:, None] * n)
+        diode.append(np.full(60, k))
+    sun, diode = _unit(np.concatenate(sun)), np.concatenate(diode)
+    got = _direct_response(sun, frames, resps, None, SUN_RADIUS)[np.arange(len(sun)), diode]
+    ang = 2 * np.pi * np.arange(256) / 256
+    dense = np.concatenate([solar_disc_offsets(SUN_RADIUS, 40), SUN_RADIUS * np.column_stack([np.cos(ang), np.sin(ang)])])
+    lit_somewhere = np.empty(len(sun), bool)
+    for k in range(len(frames)):
+        t = np.flatnonzero(diode == k)
+        lit_somewhere[t] = (resps[k].response(disc_directions(sun[t], dense) @ frames[k].T) > 0).any(axis=0)
+    assert np.all(got[~lit_somewhere] == 0) and np.all(got[lit_somewhere] > 0)
+    assert (~lit_somewhere).sum() > 200 and lit_somewhere.sum() > 20
