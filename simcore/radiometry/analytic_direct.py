@@ -323,7 +323,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         limb = np.arcsin(np.minimum(radius_m / dist, 1.0))
         cut = np.abs(sep - limb) < a
     below = _below_panel(sun_body, ep, diode, body, a)
-    if a > 0:
+    if a > 0 and rings >= 2:                # (one ring has no 13-point rule of its moments)
         off, w = smooth_disc_rule(a, rings)
         reach = max(a, float(np.max(np.hypot(off[:, 0], off[:, 1]))))   # (its outer ring: 1.007 a)
         planes = _kink_planes(frames, resps)

@@ -17,6 +17,9 @@ Dr.Jit kernel (float64). For albedo the centre of
 the diode stands for the whole diode (a slab test per Earth cell), which is
 exact to first order for the straight shadow edges of a box.
 
+Over a whole solar disc, :func:`disc_box_shadow` decides in closed form where
+the box hides all of a diode or none of it (a diode over its panel's face).
+
 Mounts of other diodes (ramps, wells) are not modelled here: only the
 renderer sees them.
 """
