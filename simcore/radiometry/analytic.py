@@ -327,6 +327,23 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
 _LANE_BUCKET = 8        # the albedo kernel's lanes: runs whose lengths differ by less than this count as one length
 
 
+def _well_cutoff_cos(resp, margin=1e-4):
+    """Return c >= 0 with the response of ``resp`` exactly 0 (in the kernel's float32) wherever d_n <= c: for a
+    rectangular well (:class:`~simcore.radiometry.response.WellAperture`), each rim (half opening w, height h > 0)
+    lights the diode (half side a) only where |d_u| < T_x d_n and |d_v| < T_y d_n, T = (w + a) / h, so d_n > 1 /
+    sqrt(1 + T_x^2 + T_y^2) with each T the smaller of its rims'; less ``margin``, which leaves |d_u| or |d_v|
+    ~1e-3 beyond its bound (float32 errs ~1e-7). 0 (behind the diode) for any other response or no rim."""
+    if not isinstance(resp, _resp.WellAperture):
+        return 0.0
+    ax, ay, wx, wy, h, tx, ty, th = resp.rims
+    rims = [(x, y, z) for x, y, z in ((wx, wy, h), (tx, ty, th)) if z > 0]
+    if not rims:
+        return 0.0
+    kx = min((x + ax) / z for x, _, z in rims)
+    ky = min((y + ay) / z for _, y, z in rims)
+    return max(float(1.0 / np.sqrt(1.0 + kx * kx + ky * ky)) - margin, 0.0)
+
+
 class _DrJitOps:
     def __init__(self, dr, tiny):
         self.maximum = dr.maximum
@@ -394,6 +411,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     ops = _DrJitOps(dr, 1e-30 if precision == "single" else 1e-300)
     kernels = [_resp.kernel(r) for r in responses]
     dark_behind = [isinstance(r, _DARK_BEHIND) for r in responses]
+    front_cos = [_well_cutoff_cos(r) for r in responses]
     base = lane_row * n_lon
     # A diode centred on or beyond its panel's face (the panel normal a body axis) meets the box only along
     # directions below the panel's plane: along the others the slab test's exit along that axis is at t <= 0
@@ -424,8 +442,14 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             # lanes nearer the normal skips the angles and lookups (a branch in the kernel)
             cond = dn < marked_cos[k]
             if marked_dot[k] is not None:
-                q, top = marked_dot[k]
-                cond &= q[0] * du + q[1] * dv + q[2] * dn < top
+                q, top, axis = marked_dot[k]
+                if axis is None:
+                    cond &= q[0] * du + q[1] * dv + q[2] * dn < top
+                else:
+                    # the panel's normal is a body axis: q . d is (bx, by, bz)'s component along it, read without
+                    # arithmetic (it and the float32 q . d differ by ~1e-7, far inside the bound's 1e-4 margin)
+                    c = (bx, by, bz)[axis % 3]
+                    cond &= c < top if axis < 3 else c > -top
             *shares, a = dr.if_stmt(args=(k, a0, a, wt, du, dv, dn, *shares), cond=cond,
                                     true_fn=_marked_share, false_fn=_unmarked_share)
         elif share_sums:
@@ -498,7 +522,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             if dark_behind[k]:
                 # the response is exactly 0 behind the diode: a packet of lanes that all look at cells behind it
                 # skips the response too (a branch in the kernel)
-                out = dr.if_stmt(args=state, cond=dn > 0.0, true_fn=functools.partial(_seen_term, k),
+                out = dr.if_stmt(args=state, cond=dn > front_cos[k], true_fn=functools.partial(_seen_term, k),
                                  false_fn=_no_term)
             else:
                 out = _seen_term(k, *state)
@@ -535,8 +559,18 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     return sums[:, :K], sums[:, 2 * K:3 * K], sums[:, K:2 * K], box
 
 
+def _unit_axis(normal):
+    """Return i (0, 1, 2) where ``normal`` is exactly +e_i, i + 3 where it is exactly -e_i, else None."""
+    n = [float(x) for x in normal]
+    for i in range(3):
+        if abs(n[i]) == 1.0 and n[(i + 1) % 3] == 0.0 and n[(i + 2) % 3] == 0.0:
+            return i if n[i] > 0 else i + 3
+    return None
+
+
 def _marked_panel_bounds(mask, frames, body_box):
-    """Return per diode None or (q, top): ``q`` (3,) its panel's outward normal in the diode frame and ``top`` a
+    """Return per diode None or (q, top, axis): ``q`` (3,) its panel's outward normal in the diode frame (``axis``:
+    :func:`_unit_axis` of it in the body frame, or None) and ``top`` a
     bound on q . d over every direction d of its marked cells (``mask`` (K, n_theta, n_phi), the cells of
     :class:`DirectionVisibility`): the kernel looks a direction up only where q . d < top. The marked cells
     are where shadows of the body, rails and mounts cross the diode, near its panel's plane; most Earth cells
@@ -559,7 +593,7 @@ def _marked_panel_bounds(mask, frames, body_box):
             continue
         q = frames[k] @ np.asarray(body_box.panel_normals[k], float)
         top = float((centres[mask[k]] @ q).max()) + half_diagonal + 1e-4
-        out.append((q.tolist(), top))
+        out.append((q.tolist(), top, _unit_axis(body_box.panel_normals[k])))
     return out
 
 

@@ -327,3 +327,35 @@ def test_albedo_without_the_mesh_terms_is_the_same_albedo(rng, backend, precisio
     assert lean.albedo_mesh_w_m2 is None and lean.albedo_visibility_error_w_m2 is None
     assert np.count_nonzero(full.albedo_mesh_w_m2) > 0.2 * full.albedo_mesh_w_m2.size      # the marked cells count
     assert not np.array_equal(full.albedo_w_m2, full.albedo_box_w_m2)
+
+
+@pytest.mark.parametrize("aperture", [WellAperture.design(70.0), WellAperture.design(40.0, cutoff_deg=60.0),
+                                      WellAperture(0.002, 0.003, 0.004, 0.007, 0.001, 0.0004, 30.0),
+                                      WellAperture.bare()])
+def test_well_cutoff_bound_leaves_out_only_dark_directions(rng, aperture):
+    # The albedo kernel tests d_n > _well_cutoff_cos(well) instead of d_n > 0 before it evaluates a well's
+    # response (the packets beyond the well's cut-off skip it): below the bound the response must be exactly 0.
+    # Oracles: the well's float64 lit fraction (aperture.py) and its kernel evaluated in float32, as the Dr.Jit
+    # kernel does, on directions crowded just below the bound at every azimuth (the cut-off reaches farthest
+    # along the diagonals); just above it some direction must be lit (the bound is the cut-off, not far below).
+    from types import SimpleNamespace
+    from simcore.radiometry.analytic import _well_cutoff_cos
+    from simcore.radiometry.response import kernel
+    ops32 = SimpleNamespace(maximum=np.maximum, minimum=np.minimum, where=np.where, tiny=np.float32(1e-30))
+    c = _well_cutoff_cos(aperture)
+    if aperture.height_m == 0:                  # no well: only the diode's own horizon
+        assert c == 0.0
+        return
+    assert 0.0 < c < 0.5
+
+    def directions(dn):
+        phi = rng.uniform(-np.pi, np.pi, dn.size)
+        s = np.sqrt(1.0 - dn * dn)
+        return np.stack([s * np.cos(phi), s * np.sin(phi), dn], axis=-1)
+    below = directions(np.concatenate([c * rng.random(20000), c - 1e-6 * rng.random(20000), [c, 0.0]]))
+    assert np.all(aperture.response(below) == 0)
+    d32 = below.astype(np.float32)
+    k32 = kernel(aperture)(d32[:, 0], d32[:, 1], d32[:, 2], ops32)
+    assert k32.dtype == np.float32 and np.all(k32 == 0)
+    above = directions(np.full(200000, c + 3e-4))
+    assert np.count_nonzero(aperture.response(above)) > 0
