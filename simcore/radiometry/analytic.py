@@ -119,6 +119,24 @@ class DirectionVisibility:
         half[1:] = np.nan_to_num(self.half.reshape(K, nt, h, nph, h)[k, i, :, j, :])
         return slots, fine, half, sub
 
+    def kernel_bounds(self, frames, body_box):
+        """Return (marked, marked_cos, panel bounds), what the albedo kernel tests before it looks a direction up,
+        kept per diode frames and body box (a run asks for the same ones chunk after chunk): per diode whether any
+        cell is marked, the cosine of the upper edge of its first marked row, widened by one fine row for float32
+        rounding of the angle (1.0 where nothing is marked), and :func:`_marked_panel_bounds`."""
+        key = (np.asarray(frames, float).tobytes(), None if body_box is None else
+               (tuple(map(float, body_box.half_m)), np.asarray(body_box.positions_m, float).tobytes(),
+                np.asarray(body_box.panel_normals, float).tobytes()))
+        cache = self.__dict__.setdefault("_kernel_bounds", {})
+        if key not in cache:
+            K, nt, _ = self.mask.shape
+            sub = self.compact[3]
+            first_row = np.array([np.argmax(m.any(axis=1)) if m.any() else 0 for m in self.mask])
+            cos = np.minimum(np.cos(np.maximum(first_row * sub - 1, 0) * (0.5 * np.pi / (nt * sub))), 1.0)
+            cache[key] = (self.mask.reshape(K, -1).any(axis=1), cos.tolist(),
+                          _marked_panel_bounds(self.mask, frames, body_box))
+        return cache[key]
+
 
 def _fine_index(d_diode, nt, nph, sub):
     """Return (fi, fj): the row (angle from the normal, 0..90 deg) and column (azimuth from u, -180..180
@@ -210,6 +228,12 @@ def _columns(start, length, full, lon0, dlon, n_lon):
 def cell_runs(r_sat_m, sun_unit, refl):
     """Return (rows, first, count), each (N, W, 2): the runs of consecutive columns of row ``rows`` whose
     cell centres are visible from the satellite and sunlit (count 0 for unused slots)."""
+    rows, first, count = _runs(r_sat_m, sun_unit, refl)
+    return np.stack([rows, rows], axis=-1), np.moveaxis(first, 0, -1), np.moveaxis(count, 0, -1)
+
+
+def _runs(r_sat_m, sun_unit, refl):
+    """Return :func:`cell_runs` as the albedo kernel takes it: rows (N, W), first and count (2, N, W), piece first."""
     R = refl.radius_m
     r = np.linalg.norm(r_sat_m, axis=1)
     sat_unit = r_sat_m / r[:, None]
@@ -257,7 +281,7 @@ def cell_runs(r_sat_m, sun_unit, refl):
     lon0, dlon, n_lon = np.radians(refl.lon_deg[0]), np.radians(refl.dlon_deg), refl.n_lon
     f1, c1 = _columns(p1_start, p1_len, p1_full, lon0, dlon, n_lon)
     f2, c2 = _columns(p2_start, p2_len, np.zeros_like(p1_full), lon0, dlon, n_lon)
-    return (np.stack([rows, rows], axis=-1), np.stack([f1, f2], axis=-1), np.stack([c1, c2], axis=-1))
+    return rows, np.stack([f1, f2]), np.stack([c1, c2])
 
 
 def _glint_terms(glint, refl):
@@ -366,7 +390,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
 
     F = Float if precision == "single" else Float64
     n_ep, K = r_sat.shape[0], frames.shape[0]
-    rows, first, count = cell_runs(r_sat, sun_unit, refl)
+    rows, first, count = _runs(r_sat, sun_unit, refl)
     W = rows.shape[1]
     # One lane per run of columns (piece, epoch, row) that holds cells, the lanes ordered by run length in steps
     # of _LANE_BUCKET columns (longest first), and within a step by epoch (then piece and row), so that the lanes
@@ -378,12 +402,12 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     # Each lane sums its own run in the same order whatever its place, and the lanes' sums go back to
     # (piece, epoch, row) order before they are added: the sums are bit for bit those of the plain order.
     n_all = 2 * n_ep * W
-    runs = count.transpose(2, 0, 1).reshape(-1)
+    runs = count.reshape(-1)
     lane_epoch = np.arange(n_all) // W % n_ep
     order = np.lexsort((lane_epoch, -((runs + _LANE_BUCKET - 1) // _LANE_BUCKET)))
     order = order[:max(int(np.count_nonzero(runs)), 2)]       # (empty runs last; >= 2 lanes: no literal)
-    lane_row = _llvm.host_array(UInt32, rows.transpose(2, 0, 1).reshape(-1)[order])
-    lane_first = _llvm.host_array(UInt32, first.transpose(2, 0, 1).reshape(-1)[order])
+    lane_row = _llvm.host_array(UInt32, rows.reshape(-1)[order % (n_ep * W)])
+    lane_first = _llvm.host_array(UInt32, first.reshape(-1)[order])
     lane_count = _llvm.host_array(UInt32, runs[order])
     n_lanes = len(order)
     lane_ep = _llvm.host_array(UInt32, lane_epoch[order])
@@ -533,12 +557,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     if comp is not None:
         nt, nph = visibility.mask.shape[1:]
         sub, h = comp[3], comp[3] // 2
-        marked = visibility.mask.reshape(K, -1).any(axis=1)
-        # per diode, the cosine of the upper edge of its first marked row, widened by one fine row for
-        # float32 rounding of the angle (1.0 where nothing is marked)
-        first_row = np.array([np.argmax(m.any(axis=1)) if m.any() else 0 for m in visibility.mask])
-        marked_cos = np.minimum(np.cos(np.maximum(first_row * sub - 1, 0) * (0.5 * np.pi / (nt * sub))), 1.0).tolist()
-        marked_dot = _marked_panel_bounds(visibility.mask, frames, body_box)
+        marked, marked_cos, marked_dot = visibility.kernel_bounds(frames, body_box)
         slots = _llvm.host_array(UInt32, comp[0])
         fine, half = table(comp[1]), table(comp[2])
     state = (dr.zeros(UInt32, n_lanes), *[dr.zeros(F, n_lanes) for _ in range(n_acc)])

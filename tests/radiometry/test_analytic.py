@@ -359,3 +359,23 @@ def test_well_cutoff_bound_leaves_out_only_dark_directions(rng, aperture):
     assert k32.dtype == np.float32 and np.all(k32 == 0)
     above = directions(np.full(200000, c + 3e-4))
     assert np.count_nonzero(aperture.response(above)) > 0
+
+
+
+
+def test_direction_visibility_keeps_kernel_bounds_per_satellite(rng):
+    # DirectionVisibility.kernel_bounds keeps the albedo kernel's bounds per diode frames and body box (a run asks
+    # for the same ones chunk after chunk). Oracle: a fresh DirectionVisibility of the same tables, asked once:
+    # after the bounds of one satellite, those of another tilt and of another body must be their own.
+    from simcore.radiometry.analytic import BodyBox, DirectionVisibility
+    K, nt, nph, sub = 14, 90, 180, 4
+    tables = (rng.random((K, nt, nph)) < 0.02, rng.random((K, nt * sub, nph * sub)),
+              rng.random((K, nt * sub // 2, nph * sub // 2)))
+    panels = np.array([[1, 0, 0]] * 3 + [[0, 1, 0]] * 3 + [[-1, 0, 0]] * 3 + [[0, -1, 0]] * 3 + [[0, 0, 1], [0, 0, -1]],
+                      float)
+    shared = DirectionVisibility(*tables)
+    for frames, normals in ((_tilt_frames(20), panels), (_tilt_frames(35), panels), (_tilt_frames(35), -panels)):
+        body = BodyBox((0.05, 0.05, 0.1135), normals * 0.06, normals)
+        got, want = shared.kernel_bounds(frames, body), DirectionVisibility(*tables).kernel_bounds(frames, body)
+        assert np.array_equal(got[0], want[0]) and got[1] == want[1] and got[2] == want[2]
+    assert shared.kernel_bounds(_tilt_frames(20), None)[2] == [None] * K
