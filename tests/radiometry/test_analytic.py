@@ -269,14 +269,14 @@ def test_direction_visibility_backends_agree_and_partition_the_albedo(rng):
 
 
 def test_direction_visibility_near_the_panel_plane_backends_agree(rng):
-    # The Dr.Jit kernel looks a direction up in the marked cells only where it can lie in one: below a bound on
+    # The Dr.Jit kernel looks a direction up in the marked cells only where it can lie in one: between bounds on
     # its height over the diode's panel (analytic._marked_panel_bounds). Oracle: the numpy backend, which looks
     # every direction up. Marked cells as the shadows make them, a band along each panel's plane (tilted
     # diodes on the four side panels, panel normals +-x, +-y; the two z diodes flat on theirs), with random
     # shares: a bound that left out part of a marked cell would lose its share (with the bound taken at the
-    # cells' centres alone, without their half-diagonal, 23 % of the values differ and this test fails). The
-    # side diodes sit beyond their panels' faces, so the kernel also skips the box's slab test above their
-    # panels' planes (with that rule's sign flipped, this test fails).
+    # cells' centres alone, without their half-diagonal, 23 % of the values differ and this test fails; so it does
+    # with the lower bound taken so). The side diodes sit beyond their panels' faces, so the kernel also skips the
+    # box's slab test above their panels' planes (with that rule's sign flipped, this test fails).
     from simcore.radiometry.analytic import BodyBox, DirectionVisibility, _marked_panel_bounds
     r, sun, rot = _orbit(rng, n=60)
     frames = _tilt_frames()
