@@ -441,12 +441,14 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     # directions below the panel's plane: along the others the slab test's exit along that axis is at t <= 0
     # (exactly, also for a direction in the plane). A packet of lanes that all look above it skips the test.
     box_above = [None] * K
+    box_face = [None] * K
     if body_box is not None:
         for k in range(K):
             pn = np.asarray(body_box.panel_normals[k], float)
             beyond = pn @ np.asarray(body_box.positions_m[k], float) >= np.abs(pn) @ np.asarray(body_box.half_m, float)
             if np.count_nonzero(pn) == 1 and beyond:
                 box_above[k] = pn.tolist()
+                box_face[k] = _face_test(body_box.positions_m[k], body_box.half_m, pn)
 
     def _diode_term(k, a0, wt, bx, by, bz, du, dv, dn, acc, *more):
         a = a0
@@ -456,7 +458,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             else:
                 pn = box_above[k]
                 a = dr.if_stmt(args=(k, a0, bx, by, bz), cond=pn[0] * bx + pn[1] * by + pn[2] * bz < 0.0,
-                               true_fn=_box_term, false_fn=lambda k, a0, *_: a0)
+                               true_fn=_box_term if box_face[k] is None else _face_term, false_fn=lambda k, a0, *_: a0)
         if comp is None:
             return (acc + wt * a,)
         shares, box = (more[:2], more[2:]) if share_sums else ((), more)
@@ -480,6 +482,21 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         elif share_sums:
             shares = (shares[0], shares[1] + wt * a)
         return (acc + wt * a, *shares, *box)
+
+    def _face_term(k, a0, bx, by, bz):
+        # below the panel's plane: where the ray crosses the face's plane (_face_test), clearly inside the face
+        # (hit: 0) or clearly outside it (a0) without the slab test's six divisions; the slab test near its edges
+        i, s, dist, others = box_face[k]
+        d = (bx, by, bz)
+        t = dist / (-s * d[i])
+        inside, outside = None, None
+        for j, p, lo, hi in others:
+            c = dr.abs(p + t * d[j])
+            inside = c < lo if inside is None else inside & (c < lo)
+            outside = c > hi if outside is None else outside | (c > hi)
+        return dr.if_stmt(args=(k, a0, dr.select(inside, 0.0, a0), bx, by, bz), cond=~(inside | outside),
+                          true_fn=lambda k, a0, _, bx, by, bz: _box_term(k, a0, bx, by, bz),
+                          false_fn=lambda k, a0, a, *_: a)
 
     def _box_term(k, a0, bx, by, bz):
         # the response with the body box's slab test from the diode's centre
@@ -615,6 +632,25 @@ def _marked_panel_bounds(mask, frames, body_box):
         out.append((q.tolist(), float(height.max()) + half_diagonal + 1e-4, float(height.min()) - half_diagonal - 1e-4,
                     _unit_axis(body_box.panel_normals[k])))
     return out
+
+
+def _face_test(position, half, normal, margin=1e-6):
+    """Return (i, s, dist, others) for a diode centred at ``position`` beyond the face of the box [-half, half]
+    whose outward normal is ``normal`` (s e_i), or None where it does not lie inside the box's other two slabs by
+    more than ``margin`` (m): ``dist`` = s position_i - half_i >= 0, and per other axis j (j, position_j,
+    half_j - margin, half_j + margin). A ray from the diode toward d with s d_i < 0 crosses the face's plane at
+    t = dist / (-s d_i); it meets the box if both |position_j + t d_j| < half_j and misses it if one exceeds
+    half_j. The margin (1e-6 m) is ~50 times what float32 rounding moves those crossings and the slab test's
+    times (~2e-8 m on a 0.2 m box), so that the slab test (:func:`_box_hit_dr`) answers the same wherever this
+    test is clear; between the bounds the kernel asks it."""
+    pos, half, n = (np.asarray(x, float) for x in (position, half, normal))
+    i = int(np.flatnonzero(n)[0])
+    s = float(np.sign(n[i]))
+    others = [j for j in range(3) if j != i]
+    if any(abs(pos[j]) >= half[j] - margin for j in others):
+        return None
+    return i, s, float(s * pos[i] - half[i]), [(j, float(pos[j]), float(half[j] - margin), float(half[j] + margin))
+                                               for j in others]
 
 
 def _box_hit_dr(dr, origin, d, half):

@@ -379,3 +379,50 @@ def test_direction_visibility_keeps_kernel_bounds_per_satellite(rng):
         got, want = shared.kernel_bounds(frames, body), DirectionVisibility(*tables).kernel_bounds(frames, body)
         assert np.array_equal(got[0], want[0]) and got[1] == want[1] and got[2] == want[2]
     assert shared.kernel_bounds(_tilt_frames(20), None)[2] == [None] * K
+
+
+def test_face_test_answers_as_the_slab_test_where_it_is_clear(rng):
+    # Below a diode's panel the albedo kernel first asks where the ray crosses the face's plane (analytic._face_test):
+    # clearly inside the face it is a hit, clearly outside a miss, and only near the face's edges the slab test is
+    # asked. Oracles: the body's float64 slab test (simcore.shapes.occlusion.box_hit) and the kernel's slab test in
+    # float32 (_box_hit_dr through numpy float32), on the float32 directions the kernel sees: random ones below the
+    # panel, ones aimed at the face's edges and corners from 1e-9 to 1e-5 m off, and ones nearly in the plane.
+    from types import SimpleNamespace
+    from simcore.radiometry.analytic import _box_hit_dr, _face_test
+    from simcore.shapes.occlusion import box_hit
+    half = (0.05, 0.05, 0.1135)
+    np32 = SimpleNamespace(select=np.where, abs=np.abs, minimum=np.minimum, maximum=np.maximum)
+    for pos, normal in (((0.053, -0.022, -0.04), (1, 0, 0)), ((0.0, 0.0, 0.1145), (0, 0, 1)),
+                        ((0.01, -0.0503, 0.05), (0, -1, 0)), ((-0.0502, 0.03, 0.0), (-1, 0, 0))):
+        i, s, dist, others = _face_test(pos, half, normal)
+        n = np.asarray(normal, float)
+        d = _unit(rng.normal(size=(20000, 3)))
+        d[:, i] = -s * np.abs(d[:, i])                                      # below the panel's plane
+        edge = rng.uniform(-1, 1, size=(20000, 3)) * np.asarray(half)       # points on the face's edges...
+        j, k = others[0][0], others[1][0]
+        side = rng.integers(0, 2, 20000).astype(bool)
+        edge[side, j] = np.sign(edge[side, j]) * half[j]
+        edge[~side, k] = np.sign(edge[~side, k]) * half[k]
+        edge += rng.choice([-1, 1], size=(20000, 3)) * 10.0 ** rng.uniform(-9, -5, size=(20000, 3))   # ...and off
+        edge[:, i] = s * half[i]
+        flat = _unit(rng.normal(size=(2000, 3)))
+        flat[:, i] = -s * 10.0 ** rng.uniform(-14, -2, 2000)
+        d = np.concatenate([d, _unit(edge - np.asarray(pos)), _unit(flat)]).astype(np.float32)
+        d[~(s * d[:, i] < 0), i] = -s * np.float32(1e-3)      # the kernel asks only strictly below the plane
+        t = np.float32(dist) / (-s * d[:, i])
+        c = [np.abs(np.float32(p) + t * d[:, jj]) for jj, p, _, _ in others]
+        inside = (c[0] < np.float32(others[0][2])) & (c[1] < np.float32(others[1][2]))
+        outside = (c[0] > np.float32(others[0][3])) | (c[1] > np.float32(others[1][3]))
+        hit64 = box_hit(np.asarray(pos), d.astype(float), half)
+        hit32 = _box_hit_dr(np32, pos, (d[:, 0], d[:, 1], d[:, 2]), half)
+        assert np.all(hit64[inside]) and np.all(hit32[inside])
+        assert not np.any(hit64[outside]) and not np.any(hit32[outside])
+        ask = ~(inside | outside)              # random directions: hardly ever; aimed at the edges: within 1e-6 m
+        assert np.count_nonzero(ask[:20000]) < 20 and 0 < np.count_nonzero(ask[20000:40000]) < 17000
+        assert inside.sum() > 1000 and outside.sum() > 1000
+    assert _face_test((0.053, 0.05, 0.0), half, (1, 0, 0)) is None          # on another slab's edge: always ask
+    i, s, dist, others = _face_test((-0.05, 0.03, 0.0), half, (-1, 0, 0))    # on the face: t = 0, every ray a hit
+    d = _unit(rng.normal(size=(2000, 3))).astype(np.float32)
+    d[:, 0] = np.abs(d[:, 0]) + np.float32(1e-6)
+    assert dist == 0.0 and np.all(box_hit(np.array([-0.05, 0.03, 0.0]), d.astype(float), half))
+    assert all(abs(p) < lo for _, p, lo, _ in others)
