@@ -637,16 +637,17 @@ def _marked_panel_bounds(mask, frames, body_box):
     return out
 
 
-def _face_test(position, half, normal, margin=1e-6):
+def _face_test(position, half, normal, margin=1e-5):
     """Return (i, s, dist, others) for a diode centred at ``position`` beyond the face of the box [-half, half]
     whose outward normal is ``normal`` (s e_i), or None where it does not lie inside the box's other two slabs by
-    more than ``margin`` (m): ``dist`` = s position_i - half_i >= 0, and per other axis j (j, position_j,
-    half_j - margin, half_j + margin). A ray from the diode toward d with s d_i < 0 crosses the face's plane at
-    t = dist / (-s d_i); it meets the box if both |position_j + t d_j| < half_j and misses it if one exceeds
-    half_j. The margin (1e-6 m) is ~50 times what float32 rounding moves those crossings and the slab test's
-    times (~2e-8 m on a 0.2 m box), so that the slab test (:func:`_box_hit_dr`) answers the same wherever this
-    test is clear; between the bounds the kernel asks it."""
+    more than m = ``margin`` (max half + max |position|): ``dist`` = s position_i - half_i >= 0, and per other axis
+    j (j, position_j, half_j - m, half_j + m). A ray from the diode toward d with s d_i < 0 crosses the face's
+    plane at t = dist / (-s d_i); it meets the box if both |position_j + t d_j| < half_j and misses it if one
+    exceeds half_j. m (1.7e-6 m on the default body) is ~50 times what float32 rounding moves those crossings and
+    the slab test's times (a few 1e-8 of the box's size), so that the slab test (:func:`_box_hit_dr`) answers the
+    same wherever this test is clear; between the bounds the kernel asks it."""
     pos, half, n = (np.asarray(x, float) for x in (position, half, normal))
+    margin = margin * float(half.max() + np.abs(pos).max())
     i = int(np.flatnonzero(n)[0])
     s = float(np.sign(n[i]))
     others = [j for j in range(3) if j != i]
