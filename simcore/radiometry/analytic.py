@@ -119,6 +119,24 @@ class DirectionVisibility:
         half[1:] = np.nan_to_num(self.half.reshape(K, nt, h, nph, h)[k, i, :, j, :])
         return slots, fine, half, sub
 
+    def kernel_bounds(self, frames, body_box):
+        """Return (marked, marked_cos, panel bounds), what the albedo kernel tests before it looks a direction up,
+        kept per diode frames and body box (a run asks for the same ones chunk after chunk): per diode whether any
+        cell is marked, the cosine of the upper edge of its first marked row, widened by one fine row for float32
+        rounding of the angle (1.0 where nothing is marked), and :func:`_marked_panel_bounds`."""
+        key = (np.asarray(frames, float).tobytes(), None if body_box is None else
+               (tuple(map(float, body_box.half_m)), np.asarray(body_box.positions_m, float).tobytes(),
+                np.asarray(body_box.panel_normals, float).tobytes()))
+        cache = self.__dict__.setdefault("_kernel_bounds", {})
+        if key not in cache:
+            K, nt, _ = self.mask.shape
+            sub = self.compact[3]
+            first_row = np.array([np.argmax(m.any(axis=1)) if m.any() else 0 for m in self.mask])
+            cos = np.minimum(np.cos(np.maximum(first_row * sub - 1, 0) * (0.5 * np.pi / (nt * sub))), 1.0)
+            cache[key] = (self.mask.reshape(K, -1).any(axis=1), cos.tolist(),
+                          _marked_panel_bounds(self.mask, frames, body_box))
+        return cache[key]
+
 
 def _fine_index(d_diode, nt, nph, sub):
     """Return (fi, fj): the row (angle from the normal, 0..90 deg) and column (azimuth from u, -180..180
@@ -210,6 +228,12 @@ def _columns(start, length, full, lon0, dlon, n_lon):
 def cell_runs(r_sat_m, sun_unit, refl):
     """Return (rows, first, count), each (N, W, 2): the runs of consecutive columns of row ``rows`` whose
     cell centres are visible from the satellite and sunlit (count 0 for unused slots)."""
+    rows, first, count = _runs(r_sat_m, sun_unit, refl)
+    return np.stack([rows, rows], axis=-1), np.moveaxis(first, 0, -1), np.moveaxis(count, 0, -1)
+
+
+def _runs(r_sat_m, sun_unit, refl):
+    """Return :func:`cell_runs` as the albedo kernel takes it: rows (N, W), first and count (2, N, W), piece first."""
     R = refl.radius_m
     r = np.linalg.norm(r_sat_m, axis=1)
     sat_unit = r_sat_m / r[:, None]
@@ -257,7 +281,7 @@ def cell_runs(r_sat_m, sun_unit, refl):
     lon0, dlon, n_lon = np.radians(refl.lon_deg[0]), np.radians(refl.dlon_deg), refl.n_lon
     f1, c1 = _columns(p1_start, p1_len, p1_full, lon0, dlon, n_lon)
     f2, c2 = _columns(p2_start, p2_len, np.zeros_like(p1_full), lon0, dlon, n_lon)
-    return (np.stack([rows, rows], axis=-1), np.stack([f1, f2], axis=-1), np.stack([c1, c2], axis=-1))
+    return rows, np.stack([f1, f2]), np.stack([c1, c2])
 
 
 def _glint_terms(glint, refl):
@@ -327,6 +351,23 @@ def _albedo_numpy(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, bo
 _LANE_BUCKET = 8        # the albedo kernel's lanes: runs whose lengths differ by less than this count as one length
 
 
+def _well_cutoff_cos(resp, margin=1e-4):
+    """Return c >= 0 with the response of ``resp`` exactly 0 (in the kernel's float32) wherever d_n <= c: for a
+    rectangular well (:class:`~simcore.radiometry.response.WellAperture`), each rim (half opening w, height h > 0)
+    lights the diode (half side a) only where |d_u| < T_x d_n and |d_v| < T_y d_n, T = (w + a) / h, so d_n > 1 /
+    sqrt(1 + T_x^2 + T_y^2) with each T the smaller of its rims'; less ``margin``, which leaves |d_u| or |d_v|
+    ~1e-3 beyond its bound (float32 errs ~1e-7). 0 (behind the diode) for any other response or no rim."""
+    if not isinstance(resp, _resp.WellAperture):
+        return 0.0
+    ax, ay, wx, wy, h, tx, ty, th = resp.rims
+    rims = [(x, y, z) for x, y, z in ((wx, wy, h), (tx, ty, th)) if z > 0]
+    if not rims:
+        return 0.0
+    kx = min((x + ax) / z for x, _, z in rims)
+    ky = min((y + ay) / z for _, y, z in rims)
+    return max(float(1.0 / np.sqrt(1.0 + kx * kx + ky * ky)) - margin, 0.0)
+
+
 class _DrJitOps:
     def __init__(self, dr, tiny):
         self.maximum = dr.maximum
@@ -349,7 +390,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
 
     F = Float if precision == "single" else Float64
     n_ep, K = r_sat.shape[0], frames.shape[0]
-    rows, first, count = cell_runs(r_sat, sun_unit, refl)
+    rows, first, count = _runs(r_sat, sun_unit, refl)
     W = rows.shape[1]
     # One lane per run of columns (piece, epoch, row) that holds cells, the lanes ordered by run length in steps
     # of _LANE_BUCKET columns (longest first), and within a step by epoch (then piece and row), so that the lanes
@@ -361,12 +402,12 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     # Each lane sums its own run in the same order whatever its place, and the lanes' sums go back to
     # (piece, epoch, row) order before they are added: the sums are bit for bit those of the plain order.
     n_all = 2 * n_ep * W
-    runs = count.transpose(2, 0, 1).reshape(-1)
+    runs = count.reshape(-1)
     lane_epoch = np.arange(n_all) // W % n_ep
     order = np.lexsort((lane_epoch, -((runs + _LANE_BUCKET - 1) // _LANE_BUCKET)))
     order = order[:max(int(np.count_nonzero(runs)), 2)]       # (empty runs last; >= 2 lanes: no literal)
-    lane_row = _llvm.host_array(UInt32, rows.transpose(2, 0, 1).reshape(-1)[order])
-    lane_first = _llvm.host_array(UInt32, first.transpose(2, 0, 1).reshape(-1)[order])
+    lane_row = _llvm.host_array(UInt32, rows.reshape(-1)[order % (n_ep * W)])
+    lane_first = _llvm.host_array(UInt32, first.reshape(-1)[order])
     lane_count = _llvm.host_array(UInt32, runs[order])
     n_lanes = len(order)
     lane_ep = _llvm.host_array(UInt32, lane_epoch[order])
@@ -394,17 +435,20 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     ops = _DrJitOps(dr, 1e-30 if precision == "single" else 1e-300)
     kernels = [_resp.kernel(r) for r in responses]
     dark_behind = [isinstance(r, _DARK_BEHIND) for r in responses]
+    front_cos = [_well_cutoff_cos(r) for r in responses]
     base = lane_row * n_lon
     # A diode centred on or beyond its panel's face (the panel normal a body axis) meets the box only along
     # directions below the panel's plane: along the others the slab test's exit along that axis is at t <= 0
     # (exactly, also for a direction in the plane). A packet of lanes that all look above it skips the test.
     box_above = [None] * K
+    box_face = [None] * K
     if body_box is not None:
         for k in range(K):
             pn = np.asarray(body_box.panel_normals[k], float)
             beyond = pn @ np.asarray(body_box.positions_m[k], float) >= np.abs(pn) @ np.asarray(body_box.half_m, float)
             if np.count_nonzero(pn) == 1 and beyond:
                 box_above[k] = pn.tolist()
+                box_face[k] = _face_test(body_box.positions_m[k], body_box.half_m, pn)
 
     def _diode_term(k, a0, wt, bx, by, bz, du, dv, dn, acc, *more):
         a = a0
@@ -414,7 +458,7 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             else:
                 pn = box_above[k]
                 a = dr.if_stmt(args=(k, a0, bx, by, bz), cond=pn[0] * bx + pn[1] * by + pn[2] * bz < 0.0,
-                               true_fn=_box_term, false_fn=lambda k, a0, *_: a0)
+                               true_fn=_box_term if box_face[k] is None else _face_term, false_fn=lambda k, a0, *_: a0)
         if comp is None:
             return (acc + wt * a,)
         shares, box = (more[:2], more[2:]) if share_sums else ((), more)
@@ -424,13 +468,35 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             # lanes nearer the normal skips the angles and lookups (a branch in the kernel)
             cond = dn < marked_cos[k]
             if marked_dot[k] is not None:
-                q, top = marked_dot[k]
-                cond &= q[0] * du + q[1] * dv + q[2] * dn < top
+                q, top, bottom, axis = marked_dot[k]
+                if axis is None:
+                    height = q[0] * du + q[1] * dv + q[2] * dn
+                    cond &= (height < top) & (height > bottom)
+                else:
+                    # the panel's normal is a body axis: q . d is (bx, by, bz)'s component along it, read without
+                    # arithmetic (it and the float32 q . d differ by ~1e-7, far inside the bounds' 1e-4 margin)
+                    c = (bx, by, bz)[axis % 3]
+                    cond &= (c < top) & (c > bottom) if axis < 3 else (c > -top) & (c < -bottom)
             *shares, a = dr.if_stmt(args=(k, a0, a, wt, du, dv, dn, *shares), cond=cond,
                                     true_fn=_marked_share, false_fn=_unmarked_share)
         elif share_sums:
             shares = (shares[0], shares[1] + wt * a)
         return (acc + wt * a, *shares, *box)
+
+    def _face_term(k, a0, bx, by, bz):
+        # below the panel's plane: where the ray crosses the face's plane (_face_test), clearly inside the face
+        # (hit: 0) or clearly outside it (a0) without the slab test's six divisions; the slab test near its edges
+        i, s, dist, others = box_face[k]
+        d = (bx, by, bz)
+        t = dist / (-s * d[i])
+        inside, outside = None, None
+        for j, p, lo, hi in others:
+            c = dr.abs(p + t * d[j])
+            inside = c < lo if inside is None else inside & (c < lo)
+            outside = c > hi if outside is None else outside | (c > hi)
+        return dr.if_stmt(args=(k, a0, dr.select(inside, 0.0, a0), bx, by, bz), cond=~(inside | outside),
+                          true_fn=lambda k, a0, _, bx, by, bz: _box_term(k, a0, bx, by, bz),
+                          false_fn=lambda k, a0, a, *_: a)
 
     def _box_term(k, a0, bx, by, bz):
         # the response with the body box's slab test from the diode's centre
@@ -460,11 +526,9 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
         return acc
 
     def _seen_term(k, wt, bx, by, bz, du, dv, dn, *acc):
-        a0 = kernels[k](du, dv, dn, ops)
-        # the body's shadow and the visible shares only where the diode sees the cell: a packet of lanes
-        # that all read 0 skips them (a branch in the kernel), ~20 % of this kernel's time
-        return dr.if_stmt(args=(a0, wt, bx, by, bz, du, dv, dn, *acc), cond=a0 > 0,
-                          true_fn=functools.partial(_diode_term, k), false_fn=lambda a0, *rest: _no_term(*rest))
+        # (no branch on a0 > 0 here: behind a well's cut-off the branch around this term skips it already; with
+        # that branch the kernels took 3-6 % more time. A lane with a0 = 0 adds +0.0 to each sum: the same bits)
+        return _diode_term(k, kernels[k](du, dv, dn, ops), wt, bx, by, bz, du, dv, dn, *acc)
 
     def cond(t, *acc):
         return t < lane_count
@@ -496,9 +560,9 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
             dn = f[2][0] * bx + f[2][1] * by + f[2][2] * bz
             state = (wt, bx, by, bz, du, dv, dn, *(acc[g * K + k] for g in range(len(groups))))
             if dark_behind[k]:
-                # the response is exactly 0 behind the diode: a packet of lanes that all look at cells behind it
-                # skips the response too (a branch in the kernel)
-                out = dr.if_stmt(args=state, cond=dn > 0.0, true_fn=functools.partial(_seen_term, k),
+                # the response is exactly 0 behind the diode, and beyond a well's cut-off (_well_cutoff_cos): a
+                # packet of lanes that all look at such cells skips the response too (a branch in the kernel)
+                out = dr.if_stmt(args=state, cond=dn > front_cos[k], true_fn=functools.partial(_seen_term, k),
                                  false_fn=_no_term)
             else:
                 out = _seen_term(k, *state)
@@ -511,16 +575,14 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     if comp is not None:
         nt, nph = visibility.mask.shape[1:]
         sub, h = comp[3], comp[3] // 2
-        marked = visibility.mask.reshape(K, -1).any(axis=1)
-        # per diode, the cosine of the upper edge of its first marked row, widened by one fine row for
-        # float32 rounding of the angle (1.0 where nothing is marked)
-        first_row = np.array([np.argmax(m.any(axis=1)) if m.any() else 0 for m in visibility.mask])
-        marked_cos = np.minimum(np.cos(np.maximum(first_row * sub - 1, 0) * (0.5 * np.pi / (nt * sub))), 1.0).tolist()
-        marked_dot = _marked_panel_bounds(visibility.mask, frames, body_box)
+        marked, marked_cos, marked_dot = visibility.kernel_bounds(frames, body_box)
         slots = _llvm.host_array(UInt32, comp[0])
         fine, half = table(comp[1]), table(comp[2])
     state = (dr.zeros(UInt32, n_lanes), *[dr.zeros(F, n_lanes) for _ in range(n_acc)])
-    _, *acc = dr.while_loop(state=state, cond=cond, body=body)
+    # (without Dr.Jit's loop-invariant pass: the marked shares' sums of diodes with no marked cell stay 0, and that
+    # pass would trace the body a second time to fold them, ~3 ms a refined call; the sums are the same)
+    with dr.scoped_set_flag(dr.JitFlag.OptimizeLoops, False):
+        _, *acc = dr.while_loop(state=state, cond=cond, body=body)
     dr.eval(*acc)
     sums = np.empty((n_ep, n_acc))
     lanes = np.zeros(n_all)
@@ -535,15 +597,26 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     return sums[:, :K], sums[:, 2 * K:3 * K], sums[:, K:2 * K], box
 
 
+def _unit_axis(normal):
+    """Return i (0, 1, 2) where ``normal`` is exactly +e_i, i + 3 where it is exactly -e_i, else None."""
+    n = [float(x) for x in normal]
+    for i in range(3):
+        if abs(n[i]) == 1.0 and n[(i + 1) % 3] == 0.0 and n[(i + 2) % 3] == 0.0:
+            return i if n[i] > 0 else i + 3
+    return None
+
+
 def _marked_panel_bounds(mask, frames, body_box):
-    """Return per diode None or (q, top): ``q`` (3,) its panel's outward normal in the diode frame and ``top`` a
-    bound on q . d over every direction d of its marked cells (``mask`` (K, n_theta, n_phi), the cells of
-    :class:`DirectionVisibility`): the kernel looks a direction up only where q . d < top. The marked cells
-    are where shadows of the body, rails and mounts cross the diode, near its panel's plane; most Earth cells
+    """Return per diode None or (q, top, bottom, axis): ``q`` (3,) its panel's outward normal in the diode frame
+    (``axis``: :func:`_unit_axis` of it in the body frame, or None) and ``top``, ``bottom`` bounds on q . d over
+    every direction d of its marked cells (``mask`` (K, n_theta, n_phi), the cells of
+    :class:`DirectionVisibility`): the kernel looks a direction up only where bottom < q . d < top. The marked
+    cells are where shadows of the body, rails and mounts cross the diode, near its panel's plane; most Earth cells
     a tilted diode sees lie well above it (on the default study 13 % of the lookups of the angle-from-the-normal
-    bound alone are left). Each cell's centre plus its half-diagonal (no point of the cell is farther from
-    the centre, and q . d moves by at most that angle in radians) plus 1e-4 for the kernel's float32 angles:
-    a looked-up cell is never skipped. None without a body box (no panel normals) or a marked cell."""
+    bound alone are left), and those well below it in the body's full shadow (the lower bound leaves ~17 % of the
+    remaining packets' lookups out). Each cell's centre plus or minus its half-diagonal (no point of the cell is
+    farther from the centre, and q . d moves by at most that angle in radians) and 1e-4 for the kernel's float32
+    angles: a looked-up cell is never skipped. None without a body box (no panel normals) or a marked cell."""
     K, nt, nph = mask.shape
     if body_box is None:
         return [None] * K
@@ -558,9 +631,30 @@ def _marked_panel_bounds(mask, frames, body_box):
             out.append(None)
             continue
         q = frames[k] @ np.asarray(body_box.panel_normals[k], float)
-        top = float((centres[mask[k]] @ q).max()) + half_diagonal + 1e-4
-        out.append((q.tolist(), top))
+        height = centres[mask[k]] @ q
+        out.append((q.tolist(), float(height.max()) + half_diagonal + 1e-4, float(height.min()) - half_diagonal - 1e-4,
+                    _unit_axis(body_box.panel_normals[k])))
     return out
+
+
+def _face_test(position, half, normal, margin=1e-5):
+    """Return (i, s, dist, others) for a diode centred at ``position`` beyond the face of the box [-half, half]
+    whose outward normal is ``normal`` (s e_i), or None where it does not lie inside the box's other two slabs by
+    more than m = ``margin`` (max half + max |position|): ``dist`` = s position_i - half_i >= 0, and per other axis
+    j (j, position_j, half_j - m, half_j + m). A ray from the diode toward d with s d_i < 0 crosses the face's
+    plane at t = dist / (-s d_i); it meets the box if both |position_j + t d_j| < half_j and misses it if one
+    exceeds half_j. m (1.7e-6 m on the default body) is ~50 times what float32 rounding moves those crossings and
+    the slab test's times (a few 1e-8 of the box's size), so that the slab test (:func:`_box_hit_dr`) answers the
+    same wherever this test is clear; between the bounds the kernel asks it."""
+    pos, half, n = (np.asarray(x, float) for x in (position, half, normal))
+    margin = margin * float(half.max() + np.abs(pos).max())
+    i = int(np.flatnonzero(n)[0])
+    s = float(np.sign(n[i]))
+    others = [j for j in range(3) if j != i]
+    if any(abs(pos[j]) >= half[j] - margin for j in others):
+        return None
+    return i, s, float(s * pos[i] - half[i]), [(j, float(pos[j]), float(half[j] - margin), float(half[j] + margin))
+                                               for j in others]
 
 
 def _box_hit_dr(dr, origin, d, half):

@@ -269,14 +269,14 @@ def test_direction_visibility_backends_agree_and_partition_the_albedo(rng):
 
 
 def test_direction_visibility_near_the_panel_plane_backends_agree(rng):
-    # The Dr.Jit kernel looks a direction up in the marked cells only where it can lie in one: below a bound on
+    # The Dr.Jit kernel looks a direction up in the marked cells only where it can lie in one: between bounds on
     # its height over the diode's panel (analytic._marked_panel_bounds). Oracle: the numpy backend, which looks
     # every direction up. Marked cells as the shadows make them, a band along each panel's plane (tilted
     # diodes on the four side panels, panel normals +-x, +-y; the two z diodes flat on theirs), with random
     # shares: a bound that left out part of a marked cell would lose its share (with the bound taken at the
-    # cells' centres alone, without their half-diagonal, 23 % of the values differ and this test fails). The
-    # side diodes sit beyond their panels' faces, so the kernel also skips the box's slab test above their
-    # panels' planes (with that rule's sign flipped, this test fails).
+    # cells' centres alone, without their half-diagonal, 23 % of the values differ and this test fails; so it does
+    # with the lower bound taken so). The side diodes sit beyond their panels' faces, so the kernel also skips the
+    # box's slab test above their panels' planes (with that rule's sign flipped, this test fails).
     from simcore.radiometry.analytic import BodyBox, DirectionVisibility, _marked_panel_bounds
     r, sun, rot = _orbit(rng, n=60)
     frames = _tilt_frames()
@@ -327,3 +327,102 @@ def test_albedo_without_the_mesh_terms_is_the_same_albedo(rng, backend, precisio
     assert lean.albedo_mesh_w_m2 is None and lean.albedo_visibility_error_w_m2 is None
     assert np.count_nonzero(full.albedo_mesh_w_m2) > 0.2 * full.albedo_mesh_w_m2.size      # the marked cells count
     assert not np.array_equal(full.albedo_w_m2, full.albedo_box_w_m2)
+
+
+@pytest.mark.parametrize("aperture", [WellAperture.design(70.0), WellAperture.design(40.0, cutoff_deg=60.0),
+                                      WellAperture(0.002, 0.003, 0.004, 0.007, 0.001, 0.0004, 30.0),
+                                      WellAperture.bare()])
+def test_well_cutoff_bound_leaves_out_only_dark_directions(rng, aperture):
+    # The albedo kernel tests d_n > _well_cutoff_cos(well) instead of d_n > 0 before it evaluates a well's
+    # response (the packets beyond the well's cut-off skip it): below the bound the response must be exactly 0.
+    # Oracles: the well's float64 lit fraction (aperture.py) and its kernel evaluated in float32, as the Dr.Jit
+    # kernel does, on directions crowded just below the bound at every azimuth (the cut-off reaches farthest
+    # along the diagonals); just above it some direction must be lit (the bound is the cut-off, not far below).
+    from types import SimpleNamespace
+    from simcore.radiometry.analytic import _well_cutoff_cos
+    from simcore.radiometry.response import kernel
+    ops32 = SimpleNamespace(maximum=np.maximum, minimum=np.minimum, where=np.where, tiny=np.float32(1e-30))
+    c = _well_cutoff_cos(aperture)
+    if aperture.height_m == 0:                  # no well: only the diode's own horizon
+        assert c == 0.0
+        return
+    assert 0.0 < c < 0.5
+
+    def directions(dn):
+        phi = rng.uniform(-np.pi, np.pi, dn.size)
+        s = np.sqrt(1.0 - dn * dn)
+        return np.stack([s * np.cos(phi), s * np.sin(phi), dn], axis=-1)
+    below = directions(np.concatenate([c * rng.random(20000), c - 1e-6 * rng.random(20000), [c, 0.0]]))
+    assert np.all(aperture.response(below) == 0)
+    d32 = below.astype(np.float32)
+    k32 = kernel(aperture)(d32[:, 0], d32[:, 1], d32[:, 2], ops32)
+    assert k32.dtype == np.float32 and np.all(k32 == 0)
+    above = directions(np.full(200000, c + 3e-4))
+    assert np.count_nonzero(aperture.response(above)) > 0
+
+
+
+
+def test_direction_visibility_keeps_kernel_bounds_per_satellite(rng):
+    # DirectionVisibility.kernel_bounds keeps the albedo kernel's bounds per diode frames and body box (a run asks
+    # for the same ones chunk after chunk). Oracle: a fresh DirectionVisibility of the same tables, asked once:
+    # after the bounds of one satellite, those of another tilt and of another body must be their own.
+    from simcore.radiometry.analytic import BodyBox, DirectionVisibility
+    K, nt, nph, sub = 14, 90, 180, 4
+    tables = (rng.random((K, nt, nph)) < 0.02, rng.random((K, nt * sub, nph * sub)),
+              rng.random((K, nt * sub // 2, nph * sub // 2)))
+    panels = np.array([[1, 0, 0]] * 3 + [[0, 1, 0]] * 3 + [[-1, 0, 0]] * 3 + [[0, -1, 0]] * 3 + [[0, 0, 1], [0, 0, -1]],
+                      float)
+    shared = DirectionVisibility(*tables)
+    for frames, normals in ((_tilt_frames(20), panels), (_tilt_frames(35), panels), (_tilt_frames(35), -panels)):
+        body = BodyBox((0.05, 0.05, 0.1135), normals * 0.06, normals)
+        got, want = shared.kernel_bounds(frames, body), DirectionVisibility(*tables).kernel_bounds(frames, body)
+        assert np.array_equal(got[0], want[0]) and got[1] == want[1] and got[2] == want[2]
+    assert shared.kernel_bounds(_tilt_frames(20), None)[2] == [None] * K
+
+
+def test_face_test_answers_as_the_slab_test_where_it_is_clear(rng):
+    # Below a diode's panel the albedo kernel first asks where the ray crosses the face's plane (analytic._face_test):
+    # clearly inside the face it is a hit, clearly outside a miss, and only near the face's edges the slab test is
+    # asked. Oracles: the body's float64 slab test (simcore.shapes.occlusion.box_hit) and the kernel's slab test in
+    # float32 (_box_hit_dr through numpy float32), on the float32 directions the kernel sees: random ones below the
+    # panel, ones aimed at the face's edges and corners from 1e-9 to 1e-5 m off, and ones nearly in the plane.
+    from types import SimpleNamespace
+    from simcore.radiometry.analytic import _box_hit_dr, _face_test
+    from simcore.shapes.occlusion import box_hit
+    half = (0.05, 0.05, 0.1135)
+    np32 = SimpleNamespace(select=np.where, abs=np.abs, minimum=np.minimum, maximum=np.maximum)
+    for pos, normal in (((0.053, -0.022, -0.04), (1, 0, 0)), ((0.0, 0.0, 0.1145), (0, 0, 1)),
+                        ((0.01, -0.0503, 0.05), (0, -1, 0)), ((-0.0502, 0.03, 0.0), (-1, 0, 0))):
+        i, s, dist, others = _face_test(pos, half, normal)
+        n = np.asarray(normal, float)
+        d = _unit(rng.normal(size=(20000, 3)))
+        d[:, i] = -s * np.abs(d[:, i])                                      # below the panel's plane
+        edge = rng.uniform(-1, 1, size=(20000, 3)) * np.asarray(half)       # points on the face's edges...
+        j, k = others[0][0], others[1][0]
+        side = rng.integers(0, 2, 20000).astype(bool)
+        edge[side, j] = np.sign(edge[side, j]) * half[j]
+        edge[~side, k] = np.sign(edge[~side, k]) * half[k]
+        edge += rng.choice([-1, 1], size=(20000, 3)) * 10.0 ** rng.uniform(-9, -5, size=(20000, 3))   # ...and off
+        edge[:, i] = s * half[i]
+        flat = _unit(rng.normal(size=(2000, 3)))
+        flat[:, i] = -s * 10.0 ** rng.uniform(-14, -2, 2000)
+        d = np.concatenate([d, _unit(edge - np.asarray(pos)), _unit(flat)]).astype(np.float32)
+        d[~(s * d[:, i] < 0), i] = -s * np.float32(1e-3)      # the kernel asks only strictly below the plane
+        t = np.float32(dist) / (-s * d[:, i])
+        c = [np.abs(np.float32(p) + t * d[:, jj]) for jj, p, _, _ in others]
+        inside = (c[0] < np.float32(others[0][2])) & (c[1] < np.float32(others[1][2]))
+        outside = (c[0] > np.float32(others[0][3])) | (c[1] > np.float32(others[1][3]))
+        hit64 = box_hit(np.asarray(pos), d.astype(float), half)
+        hit32 = _box_hit_dr(np32, pos, (d[:, 0], d[:, 1], d[:, 2]), half)
+        assert np.all(hit64[inside]) and np.all(hit32[inside])
+        assert not np.any(hit64[outside]) and not np.any(hit32[outside])
+        ask = ~(inside | outside)              # random directions: hardly ever; aimed at the edges: within 1e-6 m
+        assert np.count_nonzero(ask[:20000]) < 20 and 0 < np.count_nonzero(ask[20000:40000]) < 17000
+        assert inside.sum() > 1000 and outside.sum() > 1000
+    assert _face_test((0.053, 0.05, 0.0), half, (1, 0, 0)) is None          # on another slab's edge: always ask
+    i, s, dist, others = _face_test((-0.05, 0.03, 0.0), half, (-1, 0, 0))    # on the face: t = 0, every ray a hit
+    d = _unit(rng.normal(size=(2000, 3))).astype(np.float32)
+    d[:, 0] = np.abs(d[:, 0]) + np.float32(1e-6)
+    assert dist == 0.0 and np.all(box_hit(np.array([-0.05, 0.03, 0.0]), d.astype(float), half))
+    assert all(abs(p) < lo for _, p, lo, _ in others)
