@@ -64,16 +64,20 @@ class EarthAlbedo:
         r = self._rand(key, j, 3)
         inv_m = self._col(a, "inv_m")
         u = (mi.Float(h) + r[0]) * inv_m
-        # Bin by binary search in the task's inclusive CDF (count of entries <= u).
+        # Bin by search in the task's inclusive CDF (count of entries <= u): four-way steps, whose three probes are
+        # independent (the CDF is sorted: the count of them <= u is the quarter u falls in), then a two-way one;
+        # the same bin as a binary search, in 5 dependent gathers instead of 9
         cdf = a.tables["cdf"]
         row = self._col(a, "row")                   # the task's row of the tables
         base = row * B
-        lo = mi.UInt32(0)                   # (a scalar: it widens to the lanes' with the first select)
-        step = B // 2
-        while step >= 1:
-            probe = dr.gather(mi.Float, cdf, base + lo + (step - 1))
-            lo = dr.select(probe <= u, lo + step, lo)
-            step //= 2
+        lo, n = mi.UInt32(0), B                     # (u lies in entries lo .. lo + n - 1)
+        while n >= 4:
+            n //= 4
+            at = base + lo + (n - 1)
+            lo = lo + n * sum(dr.select(dr.gather(mi.Float, cdf, at + i * n) <= u, mi.UInt32(1), mi.UInt32(0))
+                              for i in range(3))
+        if n == 2:
+            lo = dr.select(dr.gather(mi.Float, cdf, base + lo) <= u, lo + 1, lo)
         b = dr.minimum(lo, B - 1)
         pmf = dr.gather(mi.Float, a.tables["pmf"], base + b)
         # the azimuth within the bin: u's place in the bin's CDF interval (uniform in [0, 1) and independent of
