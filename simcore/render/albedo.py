@@ -40,7 +40,8 @@ _BOUND_SHARE_GLINT = 1.0
 # round with the error falling as n^(-1/_ALBEDO_POWER). Stratified in the CDF and the bin's azimuth, the albedo's error
 # falls faster than n^(-1/2): n^(-0.75) to n^(-0.77) from pilot to final round on bench_render's orbit (TOMS 2005,
 # 500 epochs; n^(-0.62) before the azimuth was stratified; docs/renderer.md, "Fewer rays for the same accuracy").
-_ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.75, 4.0 / 3.0
+# _ALBEDO_CONF 0.65 since group B's 1/10 (below) left more of a round to group A; 0.75 before.
+_ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.65, 4.0 / 3.0
 # The aperture split's group B takes 1 / _ALBEDO_GROUP_B of an albedo round's samples, group A the rest (the direct's:
 # 1 / 5). Where the mesh's well is the analytic one group B reads exactly 0 (every task of bench_render's orbit: 20 %
 # of the albedo's lanes), so its variance is group A's alone: with 9/10 rather than 4/5 of a round, the rule reaches a
