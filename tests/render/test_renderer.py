@@ -605,8 +605,8 @@ def test_target_accuracy_is_met_in_expectation_or_the_cap_is_reached(monkeypatch
     # tasks. The oracle is that promise, pooled over the ~50 sized tasks (more samples than the first round's 256,
     # fewer than the cap): mean (se / target)^2 <= 1 (0.43-0.55 over seeds 1-6).
     # Deliberately wrong input: the rule told the error falls as n^(-2) (power 0.5), over 256 epochs (at 64, with the
-    # albedo's group A at 9/10 of the samples, only 5-11 tasks pass the first round's 256): 38-54 tasks are sized,
-    # too few samples each, and the mean reads 1.22-1.38 over seeds 1-6 and fails.
+    # albedo's group A at 9/10 of the samples, only 5-11 tasks pass the first round's 256): 33-49 tasks are sized,
+    # too few samples each, and the mean reads 1.23-1.41 over seeds 1-6 and fails.
     # (Was: every task's se <= its target, which held for seed 3 by luck, at 0.999 on one task; cuda_ad_mono's
     # other float rounding put that task at > 1 on an H100.)
     from simcore.render import sampling
