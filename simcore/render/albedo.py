@@ -40,7 +40,14 @@ _BOUND_SHARE_GLINT = 1.0
 # round with the error falling as n^(-1/_ALBEDO_POWER). Stratified in the CDF and the bin's azimuth, the albedo's error
 # falls faster than n^(-1/2): n^(-0.75) to n^(-0.77) from pilot to final round on bench_render's orbit (TOMS 2005,
 # 500 epochs; n^(-0.62) before the azimuth was stratified; docs/renderer.md, "Fewer rays for the same accuracy").
-_ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.75, 4.0 / 3.0
+# _ALBEDO_CONF 0.65 since group B's 1/10 (below) left more of a round to group A; 0.75 before.
+_ALBEDO_PILOT, _ALBEDO_CONF, _ALBEDO_POWER = 2, 0.65, 4.0 / 3.0
+# The aperture split's group B takes 1 / _ALBEDO_GROUP_B of an albedo round's samples, group A the rest (the direct's:
+# 1 / 5). Where the mesh's well is the analytic one group B reads exactly 0 (every task of bench_render's orbit: 20 %
+# of the albedo's lanes), so its variance is group A's alone: with 9/10 rather than 4/5 of a round, the rule reaches a
+# target with ~8/9 of the samples and group A's as many as before (docs/renderer.md, "Fewer rays for the same
+# accuracy").
+_ALBEDO_GROUP_B = 10
 
 
 class EarthAlbedo:
@@ -58,16 +65,20 @@ class EarthAlbedo:
         r = self._rand(key, j, 3)
         inv_m = self._col(a, "inv_m")
         u = (mi.Float(h) + r[0]) * inv_m
-        # Bin by binary search in the task's inclusive CDF (count of entries <= u).
+        # Bin by search in the task's inclusive CDF (count of entries <= u): four-way steps, whose three probes are
+        # independent (the CDF is sorted: the count of them <= u is the quarter u falls in), then a two-way one;
+        # the same bin as a binary search, in 5 dependent gathers instead of 9
         cdf = a.tables["cdf"]
         row = self._col(a, "row")                   # the task's row of the tables
         base = row * B
-        lo = mi.UInt32(0)                   # (a scalar: it widens to the lanes' with the first select)
-        step = B // 2
-        while step >= 1:
-            probe = dr.gather(mi.Float, cdf, base + lo + (step - 1))
-            lo = dr.select(probe <= u, lo + step, lo)
-            step //= 2
+        lo, n = mi.UInt32(0), B                     # (u lies in entries lo .. lo + n - 1)
+        while n >= 4:
+            n //= 4
+            at = base + lo + (n - 1)
+            lo = lo + n * sum(dr.select(dr.gather(mi.Float, cdf, at + i * n) <= u, mi.UInt32(1), mi.UInt32(0))
+                              for i in range(3))
+        if n == 2:
+            lo = dr.select(dr.gather(mi.Float, cdf, base + lo) <= u, lo + 1, lo)
         b = dr.minimum(lo, B - 1)
         pmf = dr.gather(mi.Float, a.tables["pmf"], base + b)
         # the azimuth within the bin: u's place in the bin's CDF interval (uniform in [0, 1) and independent of
@@ -156,11 +167,10 @@ class EarthAlbedo:
         return dr.normalize((1.0 - x) * w + sin_t * (dr.cos(phi) * e1 + dr.sin(phi) * e2))
 
     # -- the albedo proposal: radiance x diode cosine x aperture fraction at bin corners/centres
-    def _proposal_kernel(self, a, n_points):
-        """Return the proposal's weights (T n_points,) at the bins' corners of tasks ``a`` (:class:`_Lanes`
-        whose ``j`` counts the lanes 0 .. T n_points - 1, ``n_points`` per task)."""
+    def _corner_direction(self, a, i, n_points):
+        """Return (task of lane ``i``, the bin corner's index within its task, its unit direction) for lanes of
+        ``n_points`` corners a task (the cap's fields of :class:`_Lanes` ``a``)."""
         dr, mi = self._dr, self._mi
-        i = a.lane
         task = i // n_points
         a = replace(a, task=task)
         p = i - task * n_points
@@ -170,7 +180,16 @@ class EarthAlbedo:
         t01 = dr.gather(mi.Float, a.tables["tedge"], ring)
         phi = mi.Float(ip) * (2.0 * np.pi / _N_P)
         g3 = lambda k: self._vec(a, k)  # noqa: E731
-        d = self._cap_direction(g3("w"), g3("e1"), g3("e2"), self._col(a, "xmax"), t01, phi)
+        return a, p, ring, self._cap_direction(g3("w"), g3("e1"), g3("e2"), self._col(a, "xmax"), t01, phi)
+
+    def _earth_corners(self, a, n_points):
+        """Return the Earth's factor of the proposal's weights (T n_points,) at the bins' corners of epochs ``a``
+        (:class:`_Lanes`, one row an epoch, the cap seen from the satellite's origin): the bounded reflectivity
+        times the Sun's widened cosine, or -1 where the corner's direction misses the Earth or its sunlit side
+        (:meth:`_proposal_kernel` reads it per task)."""
+        dr, mi = self._dr, self._mi
+        a, _, ring, d = self._corner_direction(a, a.lane, n_points)
+        g3 = lambda k: self._vec(a, k)  # noqa: E731
         rot = [self._vec(a, "rot", k) for k in range(3)]
         # the map's bound over the ground of every bin that touches this corner (tlevel: _albedo_proposal)
         level = mi.UInt32(dr.gather(mi.Float, a.tables["tlevel"], ring))
@@ -178,13 +197,24 @@ class EarthAlbedo:
                                                        a.tables.get("sea"),
                                                        (a.tables["refl_max"], a.tables.get("sea_max"), level))
         rho = dr.maximum(dr.abs(rho), (_BOUND_SHARE if self._glint is None else _BOUND_SHARE_GLINT) * rho_max)
-        lit = self._well_rect(a, d, "ap_hint")[4]
-        dn = dr.dot(g3("n"), d)
         # cos_sun widened by ~half a bin on the ground, so that bins the terminator crosses
         # between their corners keep their weight
         cos_sun = cos_sun + self._col(a, "margin")
-        ok = hit & (cos_sun > 0) & (dn > 0)
-        f = rho * cos_sun * dn * lit
+        return dr.select(hit & (cos_sun > 0), rho * cos_sun, -1.0)
+
+    def _proposal_kernel(self, a, n_points):
+        """Return the proposal's weights (T n_points,) at the bins' corners of tasks ``a`` (:class:`_Lanes`
+        whose ``j`` counts the lanes 0 .. T n_points - 1, ``n_points`` per task): the Earth's factor of the task's
+        epoch (table ``earth_corners``, :meth:`_earth_corners`, at row ``epoch_row``) times the diode's cosine,
+        its well's lit fraction and the visibility of the rest of the satellite."""
+        dr, mi = self._dr, self._mi
+        a, p, _, d = self._corner_direction(a, a.lane, n_points)
+        g3 = lambda k: self._vec(a, k)  # noqa: E731
+        e = dr.gather(mi.Float, a.tables["earth_corners"], self._col(a, "epoch_row") * n_points + p)
+        lit = self._well_rect(a, d, "ap_hint")[4]
+        dn = dr.dot(g3("n"), d)
+        ok = ~(e < 0) & (dn > 0)                         # (a NaN factor passes, as a NaN corner did)
+        f = e * dn * lit
         if "vis" in a.tables:
             # what the rest of the satellite hides from this diode (_visibility_table)
             fr = [self._vec(a, "frame", k) for k in range(2)]
@@ -195,15 +225,18 @@ class EarthAlbedo:
             f *= dr.gather(mi.Float, a.tables["vis"], mi.UInt32((k * _VIS_NT + row) * _VIS_NP + col))
         return dr.select(ok, f, 0.0)
 
-    def _albedo_proposal(self, t):
-        """Return per-task cap basis and bin CDF/PMF for the albedo sampling of tasks ``t``: numpy fields, and
-        ``pmf`` and ``cdf`` as Dr.Jit arrays (float32, a row of ``_N_T _N_P`` bins per task, rows in ``t``'s order;
-        :meth:`_proposal_tables`)."""
+    def _albedo_proposal(self, t, e_, sun, earth, rot):
+        """Return per-task cap basis and bin CDF/PMF for the albedo sampling of tasks ``t`` (epochs ``e_`` of the
+        per-epoch ``sun``, ``earth`` and ``rot``): numpy fields, and ``pmf`` and ``cdf`` as Dr.Jit arrays (float32, a
+        row of ``_N_T _N_P`` bins per task, rows in ``t``'s order; :meth:`_proposal_tables`).
+
+        The cap, its bins and the Earth's factor of the weights are the epoch's, seen from the satellite's origin
+        (a diode's millimetres move the cap by ~1e-10 rad, below float32's resolution of a direction; the albedo
+        kernel traces from the diode's point whatever cap it samples): computed once per epoch, not per diode."""
         dr, mi = self._dr, self._mi
-        T = len(t["k"])
-        t = _pad2(t)
+        ue, inv = np.unique(e_, return_inverse=True)
         R = self.earth_radius_m
-        dist, w, e1, e2, xmax = cap_basis(t["earth"], R)
+        dist, w, e1, e2, xmax = cap_basis(earth[ue], R)
         # Radial bin edges between equal solid angle and equal central angle g from the
         # sub-satellite point (equal solid angle alone makes the bins near the limb span ~15 deg
         # of ground, where the terminator hides between corners), as fractions t of the cap's
@@ -215,14 +248,24 @@ class EarthAlbedo:
         tedge = _EDGE_MIX * tedge + (1 - _EDGE_MIX) * np.linspace(0.0, 1.0, _N_T + 1)[None, :]
         tedge[:, 0], tedge[:, -1] = 0.0, 1.0
         margin = _MARGIN_SCALE * np.sin(0.5 * np.maximum(g_max / _N_T, 2 * np.pi * np.sin(g_max) / _N_P))
-        prop = dict(w=w, e1=e1, e2=e2, xmax=xmax, tedge=tedge, margin=margin)
         n_points = (_N_T + 1) * (_N_P + 1)
         tlevel = reach_level(corner_reach(tedge, xmax, dist / R), self.reflectivity.shape[0])
-        omega = np.diff(tedge, axis=1) / _N_P                   # (T, N_T): a bin's solid angle / the cap's
+        cap = dict(w=w, e1=e1, e2=e2, xmax=xmax, tedge=tedge)
+        U = len(ue)
+        epochs = _pad2(dict(cap, key=np.zeros(U, np.uint32), k=np.zeros(U, np.int64), earth=earth[ue], sun=sun[ue],
+                            rot=rot[ue], margin=margin, tlevel=tlevel.astype(np.float32)))
+        parts = list(self._trace_tasks(self._earth_corners, epochs, n_points))
+        earth_corners = parts[0][1]
+        if len(parts) > 1:                                      # (epochs beyond one launch's lanes: _MAX_LANES)
+            earth_corners = dr.zeros(mi.Float, len(epochs["key"]) * n_points)
+            for sl, v in parts:
+                dr.scatter(earth_corners, v, dr.arange(mi.UInt32, sl.start * n_points, sl.stop * n_points))
+        prop = {k: v[inv] for k, v in cap.items()}              # the tasks' own copies of their epoch's cap
+        t = _pad2(dict(t, epoch_row=inv.astype(np.uint32), **prop))
+        omega = np.diff(t["tedge"], axis=1) / _N_P              # (T, N_T): a bin's solid angle / the cap's
         B = _N_T * _N_P
         parts = []
-        for sl, f in self._trace_tasks(self._proposal_kernel, dict(t, tlevel=tlevel.astype(np.float32), **prop),
-                                       n_points):
+        for sl, f in self._trace_tasks(self._proposal_kernel, t, n_points, earth_corners=earth_corners):
             n = sl.stop - sl.start
             bins, tasks = dr.arange(mi.UInt32, n * B), dr.arange(mi.UInt32, n)
             dr.make_opaque(bins, tasks)
@@ -230,12 +273,12 @@ class EarthAlbedo:
                                            host_array(mi.Float64, omega[sl]), bins, tasks)))
         pmf, cdf = parts[0][1]
         if len(parts) > 1:                                      # (tasks beyond one launch's lanes: _MAX_LANES)
-            pmf, cdf = dr.zeros(mi.Float, len(tedge) * B), dr.zeros(mi.Float, len(tedge) * B)
+            pmf, cdf = dr.zeros(mi.Float, len(omega) * B), dr.zeros(mi.Float, len(omega) * B)
             for sl, (p, c) in parts:
                 at = dr.arange(mi.UInt32, sl.start * B, sl.stop * B)
                 dr.scatter(pmf, p, at)
                 dr.scatter(cdf, c, at)
-        return dict({k: v[:T] for k, v in prop.items()}, pmf=pmf, cdf=cdf)
+        return dict(prop, pmf=pmf, cdf=cdf)
 
     def _proposal_tables(self, f, omega, bins, tasks):
         """Return the proposal's PMF and CDF (float32, a row of ``_N_T _N_P`` bins per task) from ``f``, the
@@ -307,7 +350,7 @@ class EarthAlbedo:
         (its per-task factor set here)."""
         base = self._tasks(e_, k_, sun, earth, None)
         base["rot"] = rot[e_]
-        base.update(self._albedo_proposal(dict(base, key=np.zeros(len(e_), np.uint32))))
+        base.update(self._albedo_proposal(dict(base, key=np.zeros(len(e_), np.uint32)), e_, sun, earth, rot))
         # (pmf and cdf are on the device already, one row a task of base)
         base.update(self._tables({k: v for k, v in base.items() if k not in ("pmf", "cdf")}))
         m, se, dof, n = self._rounds(self._albedo_kernel, base, _ALBEDO, g_, k_, replace(plan, fac=E[e_]))

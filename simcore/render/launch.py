@@ -104,9 +104,9 @@ def _mix32(*parts):
     return (h & np.uint64(0xFFFFFFFF)).astype(np.uint32)
 
 
-# set of tasks (Launcher._tables) and read at the task's "row"; every other field of a task dict is a column of
-# _Lanes.f or _Lanes.u.
-_TABLES = ("cdf", "pmf", "tedge", "tlevel")
+# set of tasks (Launcher._tables) and read at the task's "row" ("earth_corners": the albedo proposal's per epoch, on the
+# device already, read at the task's "epoch_row"); every other field of a task dict is a column of _Lanes.f or _Lanes.u.
+_TABLES = ("cdf", "pmf", "tedge", "tlevel", "earth_corners")
 
 
 @dataclass
@@ -405,13 +405,14 @@ class Launcher:
             out.append(np.stack([s.numpy()[:sl.stop - sl.start] for s in sums]))
         return out[0] if len(out) == 1 else np.concatenate(out, axis=1)
 
-    def _trace_tasks(self, kernel, t, n_points):
+    def _trace_tasks(self, kernel, t, n_points, **tables):
         """Yield (task slice, ``kernel(lanes, n_points)`` as a Dr.Jit array of the slice's tasks x ``n_points``
-        values) for the tasks ``t`` (at least 2) in launches of bounded size."""
+        values) for the tasks ``t`` (at least 2) in launches of bounded size; ``tables``: tables (``_TABLES``) already
+        on the device, passed to every launch as they are."""
         T = len(t["key"])
         if T < 2:                                 # a 1-element array would be baked in as a literal
             raise ValueError("_trace_tasks needs at least 2 tasks (pad them: _pad2)")
-        t = dict(t, **self._tables(t))
+        t = dict(t, **self._tables(t), **tables)
         per = max(2, _MAX_LANES // n_points)
         n = -(-T // per)
         edges = np.linspace(0, T, n + 1).round().astype(int)

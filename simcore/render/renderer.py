@@ -9,8 +9,8 @@ from simcore import _llvm
 from simcore._llvm import host_array
 from simcore.constants import E_SUN_W_M2, R_EARTH_MEAN_M
 from simcore.environment.maps import named_map
-from simcore.render.albedo import (_ALBEDO_CONF, _ALBEDO_PILOT, _ALBEDO_POWER, _ALBEDO_STRATA0, EarthAlbedo,
-                                   reach_levels, sunlit_earth_in_view)
+from simcore.render.albedo import (_ALBEDO_CONF, _ALBEDO_GROUP_B, _ALBEDO_PILOT, _ALBEDO_POWER, _ALBEDO_STRATA0,
+                                   EarthAlbedo, reach_levels, sunlit_earth_in_view)
 from simcore.render.direct import _DIRECT_SAMPLES0, DirectSun, in_umbra
 from simcore.render.launch import SUN_ANGULAR_RADIUS_RAD, Launcher, choose_variant, occluder_scene
 from simcore.render.probes import Probes
@@ -400,7 +400,7 @@ def _plans(seed, direct_samples, albedo_samples, reflected_samples, rel_se_direc
     return dict(direct=Sampling(seed, 4 * m0 * m0, None, _direct_size, 4.0 / 3.0, rel_se_direct, floor,
                                 max_direct_samples, plain=not hint),
                 albedo=Sampling(seed, n0, None, _albedo_size, _ALBEDO_POWER, rel_se_albedo, floor, max_albedo_samples,
-                                pilot=_ALBEDO_PILOT, conf=_ALBEDO_CONF),
+                                pilot=_ALBEDO_PILOT, conf=_ALBEDO_CONF, group_b=_ALBEDO_GROUP_B),
                 reflected=Sampling(seed, 4 * mr * mr, 1.0, _direct_size, plain=True))
 
 

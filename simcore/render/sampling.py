@@ -21,7 +21,9 @@ class Sampling:
     ``plain``, no aperture split; ``pilot``, the pilot round takes ``n0 // pilot`` samples; ``conf``, the pilot's
     standard error is raised by ``conf / sqrt(2 nu)`` of itself (nu its degrees of freedom) before it sizes the
     final round; ``settled`` (T,) bool or None, tasks whose estimate is known to have no variance (almost surely):
-    they skip the pilot and take a final round of ``n0``, as a task whose pilot read none."""
+    they skip the pilot and take a final round of ``n0``, as a task whose pilot read none; ``group_b``, the aperture
+    split's group B takes 1 / ``group_b`` of a round's samples and group A the rest (docs/renderer.md, "Aperture
+    split")."""
 
     seed: int
     n0: object
@@ -36,6 +38,7 @@ class Sampling:
     pilot: int = 4
     conf: float = 0.0
     settled: object = None
+    group_b: int = 5
 
 
 class Rounds:
@@ -74,8 +77,9 @@ class Rounds:
         todo = np.arange(T)
         size, skip = plan.size, plan.skip
         if self.control_variate and not plan.plain:
-            na = size(np.maximum(counts * 4 // 5, 1))
-            nb = size(np.maximum(counts // 5, 1))
+            gb = plan.group_b
+            na = size(np.maximum(counts * (gb - 1) // gb, 1))
+            nb = size(np.maximum(counts // gb, 1))
             sa = np.zeros(T, bool) if skip is None else skip[:, 0]
             sb = np.zeros(T, bool) if skip is None else skip[:, 1]
             na = np.where(sb, size(counts), na)        # only A: give it the whole budget

@@ -74,7 +74,7 @@ def test_frozen_kernels_equal_traced_ones_bit_for_bit(disc):
     # each kernel recorded once and replayed for every later launch (else this would compare tracing with itself);
     # the reference traced every launch (recorded nothing)
     assert {k: f.n_recordings for k, f in rend._frozen.items()} == {
-        "_direct_kernel": 1, "_albedo_kernel": 1, "_proposal_kernel": 1, "_proposal_tables": 1}
+        "_direct_kernel": 1, "_albedo_kernel": 1, "_earth_corners": 1, "_proposal_kernel": 1, "_proposal_tables": 1}
     assert all(f.n_recordings == 0 for f in traced._frozen.values())
     assert np.all(got.direct_samples[got.direct_w_m2 > 0] > 0) and got.albedo_samples.sum() > 0
     for name in _ARRAYS:
@@ -175,6 +175,7 @@ def test_one_renderer_through_the_calls_of_a_run_gives_the_traced_values():
     # replayed, not recorded at every call: the direct kernel once per layout of its inputs (with the Earth,
     # without), the albedo and proposal kernels once and again after the map's longitude changed
     assert counts["_direct_kernel"] <= 4 and counts["_albedo_kernel"] == 2 and counts["_proposal_kernel"] == 2
+    assert counts["_earth_corners"] == 2
     for i, (got, ref) in enumerate(zip(results[True], results[False])):
         for name in _ARRAYS:
             g, r = getattr(got, name), getattr(ref, name)
@@ -228,7 +229,7 @@ def test_a_dropped_renderer_is_freed_at_once():
     try:
         rend = Renderer(DiodeSurfaces.from_config(cfg), build_satellite_mesh(cfg), variant=VARIANT)
         rend.render(sun, earth, rot, direct_samples=64, albedo_samples=16)
-        assert len(rend._frozen) == 4
+        assert len(rend._frozen) == 5
         ref = weakref.ref(rend)
         del rend
         assert ref() is None

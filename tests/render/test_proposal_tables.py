@@ -64,7 +64,8 @@ def test_device_tables_are_numpys_bit_for_bit(rend):
 
 
 def test_the_tables_do_not_depend_on_the_launches(rend, monkeypatch):
-    # The proposal of real tasks, in one launch and in launches of 3 tasks (their tables put together at offsets)
+    # The proposal of real tasks, in one launch and in launches of 3 tasks or epochs (their tables put together at
+    # offsets)
     rng = np.random.default_rng(2)
     n = 9
     sun = rng.normal(size=(n, 3))
@@ -72,12 +73,12 @@ def test_the_tables_do_not_depend_on_the_launches(rend, monkeypatch):
     down = rng.normal(size=(n, 3))
     earth = 7.07e6 * down / np.linalg.norm(down, axis=1, keepdims=True)
     rot, _ = np.linalg.qr(rng.normal(size=(n, 3, 3)))
-    ep, dk = np.arange(n), np.arange(n) % rend.diodes.count
+    ep, dk = np.arange(n) // 2, np.arange(n) % rend.diodes.count       # (tasks sharing epochs: their Earth's factor)
     t = rend._tasks(ep, dk, sun, earth)
     t.update(rot=rot[ep], key=np.zeros(n, np.uint32))
-    one = rend._albedo_proposal(t)
+    one = rend._albedo_proposal(t, ep, sun, earth, rot)
     monkeypatch.setattr(launch, "_MAX_LANES", 3 * (_N_T + 1) * (_N_P + 1))
-    split = rend._albedo_proposal(t)
+    split = rend._albedo_proposal(t, ep, sun, earth, rot)
     for k in ("pmf", "cdf"):
         assert one[k].numpy().any()
         np.testing.assert_array_equal(split[k].numpy(), one[k].numpy())
