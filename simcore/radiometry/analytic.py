@@ -588,7 +588,10 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     lanes = np.zeros(n_all)
     for k in range(n_acc):
         lanes[order] = np.asarray(acc[k].numpy(), dtype=np.float64)
-        sums[:, k] = lanes.reshape(2, n_ep, W).sum(axis=(0, 2))
+        # an epoch's runs added one by one in (piece, row) order (a running sum: the empty runs that pad an epoch to
+        # the chunk's widest add exact zeros, and numpy's pairwise sum would group the runs by the chunk's width), so
+        # that an epoch's sum does not depend on its chunk (a resumed run reads the same numbers)
+        sums[:, k] = np.cumsum(lanes.reshape(2, n_ep, W).transpose(1, 0, 2).reshape(n_ep, 2 * W), axis=1)[:, -1]
     if comp is None:
         return sums, None, None, None
     box = sums[:, -K:] if box_sum else None

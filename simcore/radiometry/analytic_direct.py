@@ -9,7 +9,7 @@ reaches only the disc's rim) are described at
 import numpy as np
 
 from simcore.radiometry import response as _resp
-from simcore.shapes.occlusion import disc_box_shadow, pair_visibility
+from simcore.shapes.occlusion import disc_box_shadow, pair_visibility, row_dot
 
 
 def solar_disc_offsets(radius_rad, rings=3):
@@ -35,6 +35,19 @@ def disc_directions(sun_body, offsets):
     e2 = np.cross(s, e1)
     d = s[None] + offsets[:, :1, None] * e1[None] + offsets[:, 1:, None] * e2[None]
     return d / np.linalg.norm(d, axis=2, keepdims=True)
+
+
+def _disc_sum(w, x):
+    """Return (T,): sum over m of ``w[m] * x[m]`` ((M, T) each, or ``w`` (M,)), added point by point in order: each
+    pair's rounding is independent of how many pairs there are (numpy's ``einsum`` fuses some products into its sums
+    by their place in a SIMD packet, and a reduction of one column sums pairwise), so that a diode-epoch's reference
+    does not depend on its chunk (a resumed run reads the same numbers)."""
+    w = np.asarray(w)
+    w = w[:, None] if w.ndim == 1 else w
+    acc = w[0] * x[0]
+    for m in range(1, len(x)):
+        acc = acc + w[m] * x[m]
+    return acc
 
 
 def smooth_disc_rule(radius_rad, rings=3):
@@ -102,7 +115,7 @@ def _smooth_pairs(sun, diode, planes, radius_rad, min_cos=_SMOOTH_MIN_COS):
     its kink planes (``planes`` (K, P, 3), unit normals, :func:`_kink_planes`): a plane c . d = 0 meets the
     disc iff |s . c| <= sin(radius); and whose centre has d_n > ``min_cos`` (-inf: any; ``planes`` then need not
     start with the horizon's)."""
-    sc = np.einsum("tpj,tj->tp", planes[diode], sun)
+    sc = row_dot(planes[diode], sun[:, None])
     with np.errstate(invalid="ignore"):
         clear = (np.abs(sc) > np.sin(radius_rad) * (1.0 + 1e-9) + 1e-12).all(axis=1)
     return clear if min_cos == -np.inf else clear & (sc[:, 0] > min_cos)
@@ -123,8 +136,8 @@ def _disc_sample(sun_body, sun_angular_radius_rad, rings, earth_body_m=None, rad
     dirs = disc_directions(sun_body, offsets)
     weights = np.ones(dirs.shape[:2])                                      # (M, N)
     if earth_body_m is not None and len(dirs) > 1:
-        along = np.einsum("mnj,nj->mn", dirs, earth_body_m)
-        miss2 = np.einsum("nj,nj->n", earth_body_m, earth_body_m)[None] - along ** 2
+        along = row_dot(dirs, earth_body_m[None])
+        miss2 = row_dot(earth_body_m, earth_body_m)[None] - along ** 2
         weights = ~((along > 0) & (miss2 < radius_m ** 2))
         weights = np.where(weights.any(axis=0), weights, True).astype(float)   # umbra by points: plain mean
     partial_earth = (weights != weights[:1]).any(axis=0) if len(dirs) > 1 else np.zeros(weights.shape[1], bool)
@@ -142,7 +155,7 @@ def _pair_response(resps, frames, diode, d):
     resp = np.empty(d.shape[:2])
     for k in np.unique(diode):
         t = np.flatnonzero(diode == k)
-        dk = d[:, t] @ frames[k].T
+        dk = row_dot(d[:, t, None], frames[k])                  # (M, t, 3): the directions in the diode's frame
         r = resps[k]
         if isinstance(r, _WELLS):
             lit_k = r.lit_fraction(dk)
@@ -167,7 +180,7 @@ def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None,
     then the probes' visibility times the response, not traced point by point)."""
     m, n = resp.shape
     if body is None:
-        return np.einsum("mn,mn->n", weights, resp), np.zeros(n, bool), np.ones(n), np.zeros(n, bool)
+        return _disc_sum(weights, resp), np.zeros(n, bool), np.ones(n), np.zeros(n, bool)
 
     def vis(k, d):
         return pair_visibility(resps, frames, body.positions_m, body.panel_normals, k, d, body.half_m)
@@ -209,7 +222,7 @@ def _disc_mean(dirs, weights, resp, diode, frames, resps, body, rings, rim=None,
     if traced.any() and m > 1:
         cols = np.flatnonzero(traced)                      # every disc point of the edge pairs, in one batch
         v_all[:, cols] = (vis_pairs(cols, dirs) if v_full is None else v_full)[:, cols]
-    mean = np.einsum("mn,mn->n", weights, resp * np.nan_to_num(v_all, nan=1.0))
+    mean = _disc_sum(weights, resp * np.nan_to_num(v_all, nan=1.0))
     # where every probe agrees, the box's visibility over the whole disc (1 where undefined)
     steady = np.where(~(edge | rim_only) & seen, lo, np.nan) if rim is not None else np.full(n, np.nan)
     return mean, rim_only & (m > 1), steady, edge & (m > 1)
@@ -223,7 +236,7 @@ def _below_panel(sun_body, ep, diode, body, radius_rad):
     if body is None:
         return None
     p = np.asarray(body.panel_normals, float)[diode]
-    return np.einsum("tj,tj->t", sun_body[ep], p) <= (radius_rad + 1e-9) * np.linalg.norm(p, axis=1)
+    return row_dot(sun_body[ep], p) <= (radius_rad + 1e-9) * np.linalg.norm(p, axis=1)
 
 
 # The body box's shadow edge across only the solar disc's rim, or the diode's horizon across the disc:
@@ -252,11 +265,10 @@ def _edge_mean(sun_body, radius_rad, diode, frames, resps, body, steady=None):
     it at every point)."""
     off, w = _polar_disc_offsets(radius_rad)
     d = disc_directions(sun_body, off)                                       # (M, T, 3)
-    wt = np.broadcast_to(w[:, None], d.shape[:2])
     cos_alpha = 1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))
-    wt = wt / wt.sum(axis=0) / float(np.sum(w * cos_alpha))
+    wt = np.broadcast_to((w / w.sum() / float(np.sum(w * cos_alpha)))[:, None], d.shape[:2])
     resp = _pair_response(resps, frames, diode, d)[1]
-    out = np.einsum("mn,mn->n", wt, resp)
+    out = _disc_sum(wt, resp)
     if body is None:
         return out
     # the box's visibility point by point only where the probes did not agree on one value
@@ -274,7 +286,7 @@ def _edge_mean(sun_body, radius_rad, diode, frames, resps, body, steady=None):
                              probe, body.half_m)
         v[inner] = vp[:t.size][None]
         v[outer] = vp[t.size:].reshape(len(outer), t.size)
-        out[t] = np.einsum("mn,mn->n", wt[:, t], resp[:, t] * np.nan_to_num(v, nan=1.0))
+        out[t] = _disc_sum(wt[:, t], resp[:, t] * np.nan_to_num(v, nan=1.0))
     return out
 
 
@@ -309,7 +321,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     n_ep, K = sun_body.shape[0], len(frames)
     out = np.zeros((n_ep, K))
     # Every disc point d has d . n <= (s . n + a) / |s + offset| for the disc's angular radius a.
-    in_front = sun_body @ frames[:, 2].T > -(sun_angular_radius_rad + 1e-6)
+    in_front = row_dot(sun_body[:, None], frames[None, :, 2]) > -(sun_angular_radius_rad + 1e-6)
     in_front |= np.array([not isinstance(r, _DARK_BEHIND) for r in resps])[None]
     diode, ep = np.nonzero(in_front.T)
     if ep.size == 0:
@@ -319,7 +331,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
     if earth_body_m is not None:
         # where the Earth's limb cuts the disc too, the rules of the kinks below (unchanged) weigh the points
         dist = np.linalg.norm(earth_body_m, axis=1)
-        sep = np.arccos(np.clip(np.einsum("nj,nj->n", sun_body, earth_body_m) / dist, -1.0, 1.0))
+        sep = np.arccos(np.clip(row_dot(sun_body, earth_body_m) / dist, -1.0, 1.0))
         limb = np.arcsin(np.minimum(radius_m / dist, 1.0))
         cut = np.abs(sep - limb) < a
     below = _below_panel(sun_body, ep, diode, body, a)
@@ -333,12 +345,12 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         dark = _smooth_pairs(sun_body[ep], diode, planes[:, 1:], reach, -np.inf) & np.isfinite(planes[diode, 0, 0])
         if dark.any():
             s, n = sun_body[ep[dark]], frames[diode[dark], 2]
-            sn = np.einsum("tj,tj->t", s, n)
+            sn = row_dot(s, n)
             perp = n - sn[:, None] * s
             norm = np.linalg.norm(perp, axis=1)
             b = 0.999 * a
             at = np.where((sn > 0)[:, None], s, np.cos(b) * s + np.sin(b) * perp / np.maximum(norm, 1e-300)[:, None])
-            dark[dark] = (np.einsum("tj,tj->t", at, n) > 0) & (_pair_response(resps, frames, diode[dark], at[None])[1][0] == 0)
+            dark[dark] = (row_dot(at, n) > 0) & (_pair_response(resps, frames, diode[dark], at[None])[1][0] == 0)
             ep, diode, below = ep[~dark], diode[~dark], None if below is None else below[~dark]
         boxed = np.zeros(ep.size, bool)
         if body is not None:
@@ -362,7 +374,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         if fast.any():
             f_ep, f_k = ep[fast], diode[fast]
             resp7 = _pair_response(resps, frames, f_k, disc_directions(sun_body[f_ep], off))[1]
-            out[f_ep, f_k] = (w @ resp7) / float(w @ (1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))))
+            out[f_ep, f_k] = _disc_sum(w, resp7) / float(w @ (1.0 / np.sqrt(1.0 + np.sum(off ** 2, axis=1))))
         plain = smooth & ~fast
         if plain.any():
             # smooth, but nearer the horizon: the 37 points alone (what the steps below give them: no kink to find)
@@ -370,7 +382,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
             rows, at = np.unique(p_ep, return_inverse=True)
             dirs, weights, _ = _disc_sample(sun_body[rows], a, rings)
             d = dirs[:, at]
-            out[p_ep, p_k] = np.einsum("mn,mn->n", weights[:, at], _pair_response(resps, frames, p_k, d)[1])
+            out[p_ep, p_k] = _disc_sum(weights[:, at], _pair_response(resps, frames, p_k, d)[1])
         ep, diode = ep[~smooth], diode[~smooth]
         below = None if below is None else below[~smooth]
         if ep.size == 0:
@@ -393,7 +405,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         return out
     # The diode's own horizon across the disc: a sliver of the disc above it can lie beyond every point of
     # the 397-point rule (rendered 5e-4 W/m^2 where it gave 0, 5 standard errors, on a bare tilt0_fov90 day).
-    horizon = np.abs(np.einsum("tj,tj->t", sun_body[ep], frames[diode, 2])) < np.sin(sun_angular_radius_rad)
+    horizon = np.abs(row_dot(sun_body[ep], frames[diode, 2])) < np.sin(sun_angular_radius_rad)
     edge |= horizon & (edge | ~np.isnan(steady) | (body is None))   # (an edge across the interior: 37 points)
     edge &= ~cut[ep]
     if edge.any():

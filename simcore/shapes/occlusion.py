@@ -30,6 +30,14 @@ from simcore.shapes.aperture import lit_rectangle_of
 
 
 
+def row_dot(a, b):
+    """Return the dot products of ``a`` and ``b`` (broadcast) along their last axis (3), term by term in the order x,
+    y, z: each value's rounding is independent of the array's size and of its place in it (numpy's ``einsum`` and
+    ``@`` may fuse a multiply and an add or block the work by the array's size), so that the check's reference of a
+    diode-epoch does not depend on the chunk it is computed in (a resumed run reads the same numbers)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
 def box_hit(origins, dirs, half_m):
     """Return True where the ray ``origin + t dir`` (t > 0) hits the box [-half, half] (slab test), bool (...)."""
     o = np.asarray(origins, dtype=float)
@@ -229,7 +237,7 @@ def _visibility_below(table, diode, d):
     row of ``table``, :func:`_table`) toward the direction ``d[t]`` (T, 3) below its panel and in front of it; NaN
     where the well itself lets no light through (the box's kernel runs on the others alone)."""
     n_ap = table.shape[1] - 15
-    dd = np.einsum("tij,tj->ti", table[diode, n_ap:n_ap + 9].reshape(-1, 3, 3), d).T   # the directions in the diode frames
+    dd = row_dot(table[diode, n_ap:n_ap + 9].reshape(-1, 3, 3), d[:, None]).T   # the directions in the diode frames
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):    # (contiguous rows: faster, the same numbers)
         own = lit_rectangle_of(np.ascontiguousarray(table[diode, :n_ap].T), *np.ascontiguousarray(dd))[4]
     vis = np.full(len(d), np.nan)
@@ -246,8 +254,8 @@ def direct_visibility(apertures, frames, positions_m, panel_normals, d_body, hal
     d = np.atleast_2d(np.asarray(d_body, float))
     N, K = d.shape[0], len(frames)
     vis = np.ones((N, K))
-    below = d @ np.asarray(panel_normals, float).T < 0          # only these can meet the body
-    front = np.einsum("nj,kj->nk", d, np.asarray(frames)[:, 2]) > 0
+    below = row_dot(d[:, None], np.asarray(panel_normals, float)[None]) < 0          # only these can meet the body
+    front = row_dot(d[:, None], np.asarray(frames)[None, :, 2]) > 0
     todo = below & front if only is None else below & front & only
     if not todo.any():
         return vis
@@ -265,8 +273,8 @@ def pair_visibility(apertures, frames, positions_m, panel_normals, diode, d_body
     k = np.asarray(diode, dtype=np.int64).reshape(-1)
     frames = np.asarray(frames, float)
     vis = np.ones(len(d))
-    below = np.einsum("tj,tj->t", d, np.asarray(panel_normals, float)[k]) < 0
-    front = np.einsum("tj,tj->t", d, frames[k, 2]) > 0
+    below = row_dot(d, np.asarray(panel_normals, float)[k]) < 0
+    front = row_dot(d, frames[k, 2]) > 0
     t = np.flatnonzero(below & front)
     if t.size:
         vis[t] = _visibility_below(_table(_aperture_params(apertures), frames, positions_m, half_m), k[t], d[t])
@@ -306,7 +314,7 @@ def disc_box_shadow(sun, diode, frames, half_diodes, positions_m, panel_normals,
     within = np.all(np.where(lateral[:, None], np.abs(corners) <= half, True), axis=(1, 2))
     ok = (np.abs(np.abs(normals[np.arange(len(axis)), axis]) - 1.0) < 1e-12) & (height > 0).all(axis=1) & within
     delta = 2.0 * np.sin(0.5 * reach_rad)
-    sp = -np.einsum("tj,tj->t", s, normals[k])               # -s . p
+    sp = -row_dot(s, normals[k])               # -s . p
     t = np.flatnonzero(ok[k] & (sp > 2.0 * delta))
     if t.size == 0:
         return out
