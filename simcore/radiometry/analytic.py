@@ -584,14 +584,20 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     with dr.scoped_set_flag(dr.JitFlag.OptimizeLoops, False):
         _, *acc = dr.while_loop(state=state, cond=cond, body=body)
     dr.eval(*acc)
-    sums = np.empty((n_ep, n_acc))
-    lanes = np.zeros(n_all)
+    # An epoch's runs added one by one in (piece, row) order (the empty runs that pad an epoch to the chunk's widest
+    # add exact zeros, where numpy's pairwise sum would group the runs by the chunk's width), so that an epoch's sum
+    # does not depend on its chunk (a resumed run reads the same numbers): the lanes go to (piece, row, epoch) order,
+    # each (piece, row) a contiguous slab of epochs.
+    piece, rest = np.divmod(order, n_ep * W)
+    slot = piece * (W * n_ep) + rest % W * n_ep + rest // W
+    runs = np.zeros((n_acc, 2 * W, n_ep))
+    flat = runs.reshape(n_acc, -1)
     for k in range(n_acc):
-        lanes[order] = np.asarray(acc[k].numpy(), dtype=np.float64)
-        # an epoch's runs added one by one in (piece, row) order (a running sum: the empty runs that pad an epoch to
-        # the chunk's widest add exact zeros, and numpy's pairwise sum would group the runs by the chunk's width), so
-        # that an epoch's sum does not depend on its chunk (a resumed run reads the same numbers)
-        sums[:, k] = np.cumsum(lanes.reshape(2, n_ep, W).transpose(1, 0, 2).reshape(n_ep, 2 * W), axis=1)[:, -1]
+        flat[k, slot] = np.asarray(acc[k].numpy(), dtype=np.float64)
+    total = runs[:, 0].copy()
+    for r in range(1, 2 * W):
+        total += runs[:, r]
+    sums = total.T
     if comp is None:
         return sums, None, None, None
     box = sums[:, -K:] if box_sum else None
