@@ -395,7 +395,6 @@ def test_face_test_answers_as_the_slab_test_where_it_is_clear(rng):
     for pos, normal in (((0.053, -0.022, -0.04), (1, 0, 0)), ((0.0, 0.0, 0.1145), (0, 0, 1)),
                         ((0.01, -0.0503, 0.05), (0, -1, 0)), ((-0.0502, 0.03, 0.0), (-1, 0, 0))):
         i, s, dist, others = _face_test(pos, half, normal)
-        n = np.asarray(normal, float)
         d = _unit(rng.normal(size=(20000, 3)))
         d[:, i] = -s * np.abs(d[:, i])                                      # below the panel's plane
         edge = rng.uniform(-1, 1, size=(20000, 3)) * np.asarray(half)       # points on the face's edges...
