@@ -399,8 +399,8 @@ def _albedo_drjit(r_sat, sun_unit, R_body_from_ecef, frames, responses, refl, pr
     # attitude, neighbouring rows, so that the kernel's branches (a diode facing away, the body box, the traced
     # visible shares) go the same way across a packet. Ordered by exact length, a packet held lanes of many
     # epochs: the kernels took ~10 % (refined cells, with the shares) and ~5-9 % (native cells) more CPU time.
-    # Each lane sums its own run in the same order whatever its place, and the lanes' sums go back to
-    # (piece, epoch, row) order before they are added: the sums are bit for bit those of the plain order.
+    # Each lane sums its own run in the same order whatever its place, and an epoch's lanes' sums are added in
+    # (piece, row) order (below): the sums are bit for bit the same whatever the lanes' order or the chunk.
     n_all = 2 * n_ep * W
     runs = count.reshape(-1)
     lane_epoch = np.arange(n_all) // W % n_ep
