@@ -33,7 +33,8 @@ from simcore.pipeline.preflight import (attitude_times_note, check_map, check_nu
                                        check_variant, map_for_diodes, reflected_ignored_note, tle_age_note)
 from simcore.pipeline.reference import CheckReference
 from simcore.pipeline.runfile import (CHUNK_ARRAYS, add_checksums, build_dataset, chunk_arrays_of, open_run,
-                                      options_digest, options_of, size_bound, software_versions, writer)
+                                      options_digest, options_of, size_bound, software_versions, write_netcdf,
+                                      writer)
 from simcore.pipeline.store import (ChunkStore, atomic_write, check_room, check_writable, chunk_ranges, is_disk_full,
                                     missing_ranges, spec_digest)
 from simcore.environment.geometry import compute_geometry
@@ -370,7 +371,7 @@ def _write_chunks_and_file(study, store, todo, bar, n):
     ds, report = build_dataset(study, data, study.variant)
 
     def write(tmp):
-        add_checksums(ds).to_netcdf(tmp, engine="h5netcdf")
+        write_netcdf(add_checksums(ds), tmp)
     check_room(store.folder, size_bound(ds))
     # The temporary file lies in the partial folder: a crash here leaves it where the resume cleans up.
     atomic_write(store.final_path, write, tmp_dir=store.folder)
@@ -408,7 +409,7 @@ def recompute_analytic(path, *, chunk=4096, log=None):
     new.attrs["analytic_recomputed_with"] = json.dumps(software_versions(), sort_keys=True)
 
     def write(tmp):
-        add_checksums(new).to_netcdf(tmp, engine="h5netcdf")
+        write_netcdf(add_checksums(new), tmp)
     ds.close()
     atomic_write(path, write)
     return report

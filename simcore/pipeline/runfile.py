@@ -204,6 +204,19 @@ def verify_checksums(ds, path, note=None):
     return ds
 
 
+def write_netcdf(ds, path):
+    """Write ``ds`` to ``path`` as netCDF-4 (h5netcdf): the bytes of ``ds.to_netcdf(path, engine="h5netcdf")``
+    without its look for a Dask scheduler, which imports dask.distributed (0.10 s of every run) to choose a
+    lock: the arrays here are numpy, written by this thread, under xarray's HDF5 lock as that call takes it."""
+    from xarray.backends import H5NetCDFStore
+    from xarray.backends.locks import HDF5_LOCK
+    store = H5NetCDFStore.open(path, mode="w", lock=HDF5_LOCK)
+    try:
+        ds.dump_to_store(store)
+    finally:
+        store.close()
+
+
 def size_bound(ds):
     """Return an upper bound (bytes) of ``ds`` written as netCDF-4 without compression: its arrays, its attributes
     and 8 KiB of HDF5 metadata per variable plus 64 KiB (a 4-epoch run file: 58 kB written, this bound 0.4 MB)."""

@@ -24,7 +24,7 @@ from scenes.config import SatelliteConfig
 from simcore.environment.epochs import Epochs
 
 from simcore.pipeline.run import execute
-from simcore.pipeline.runfile import open_run
+from simcore.pipeline.runfile import open_run, write_netcdf
 from simcore.pipeline.store import atomic_write, spec_digest
 
 
@@ -95,7 +95,7 @@ def combine(points, out_path):
                      "options": json.dumps(dataclasses.asdict(points[0]), default=str)})
 
     def write(tmp):
-        ds.to_netcdf(tmp, engine="h5netcdf")
+        write_netcdf(ds, tmp)
     atomic_write(out_path, write)
     return ds
 

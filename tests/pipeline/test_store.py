@@ -1,5 +1,7 @@
 """Crash-safe chunk storage: finished chunks survive, foreign partial runs are refused."""
 import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -105,3 +107,25 @@ def test_unwritable_outputs_are_explained(tmp_path):
     # /proc accepts no new files, whatever the permission bits say (root passes os.access there).
     with pytest.raises(PermissionError, match="the folder /proc accepts no new files"):
         check_writable("/proc/x.nc")
+
+
+def test_the_run_file_writer_writes_what_xarray_writes_without_importing_distributed(tmp_path):
+    # the oracle: xarray's own Dataset.to_netcdf (engine h5netcdf), byte for byte; write_netcdf only skips its look
+    # for a Dask scheduler, which imports dask.distributed (0.10 s of every run). In a fresh interpreter, because
+    # another test may have imported distributed already.
+    script = f"""
+import sys
+import numpy as np
+import xarray as xr
+from simcore.pipeline.runfile import add_checksums, write_netcdf
+ds = xr.Dataset({{"rendered": (("time", "diode", "component"), np.arange(24.0).reshape(2, 4, 3)),
+                 "valid": (("time", "diode"), np.ones((2, 4), bool)),
+                 "name": ("diode", np.array(["a", "bb", "ccc", "d"], dtype=object))}},
+                coords={{"time": np.array(["2016-07-02T00:00:00", "2016-07-02T00:00:01"], "datetime64[ns]")}},
+                attrs={{"check": '{{"pass": true}}', "epochs": 2}})
+write_netcdf(add_checksums(ds), {str(tmp_path / "ours.nc")!r})
+assert "distributed" not in sys.modules, "write_netcdf imported dask.distributed"
+ds.to_netcdf({str(tmp_path / "xarray.nc")!r}, engine="h5netcdf")
+"""
+    subprocess.run([sys.executable, "-c", script], check=True)
+    assert (tmp_path / "ours.nc").read_bytes() == (tmp_path / "xarray.nc").read_bytes()
