@@ -12,6 +12,12 @@ SITE=/tmp/sunsim-site
 OUT=${OUT:-/tmp/sunsim-out}
 mkdir -p "$OUT"
 export PYTHONUNBUFFERED=1
+if [ "$part" = a ] || [ "$part" = b ]; then
+    if ! ls .whl/"$part"/*.whl > /dev/null 2>&1; then
+        echo "no wheels in .whl/$part: run 'python benchmarks/device_wheels.py' first, and carry .whl/$part" >&2
+        exit 2
+    fi
+fi
 case $part in
 a)
     python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target "$SITE" .whl/a/*.whl
