@@ -370,7 +370,7 @@ def _direct_response(sun_body, frames, resps, body, sun_angular_radius_rad, eart
         smooth = _smooth_pairs(sun_body[ep], diode, planes, reach, 0.0) & ~boxed
         if earth_body_m is not None:
             smooth &= (sep > limb + reach * (1.0 + 1e-9) + 1e-12)[ep]     # no point of the rules behind the Earth
-        fast = smooth & _smooth_pairs(sun_body[ep], diode, planes, reach)
+        fast = smooth & (row_dot(sun_body[ep], planes[diode, 0]) > _SMOOTH_MIN_COS)   # (planes[:, 0]: the horizon's)
         if fast.any():
             f_ep, f_k = ep[fast], diode[fast]
             resp7 = _pair_response(resps, frames, f_k, disc_directions(sun_body[f_ep], off))[1]

@@ -361,8 +361,6 @@ def test_well_cutoff_bound_leaves_out_only_dark_directions(rng, aperture):
     assert np.count_nonzero(aperture.response(above)) > 0
 
 
-
-
 def test_direction_visibility_keeps_kernel_bounds_per_satellite(rng):
     # DirectionVisibility.kernel_bounds keeps the albedo kernel's bounds per diode frames and body box (a run asks
     # for the same ones chunk after chunk). Oracle: a fresh DirectionVisibility of the same tables, asked once:
