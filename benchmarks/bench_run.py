@@ -10,7 +10,10 @@ Beside it, the renderer alone, bench_render's way: in another fresh process the 
 rendering (issue 32: at most 1.2 over three orbits, ``--duration 17613``). Each round also times a one-epoch
 ``sunsim run`` (start-up and imports, the scene and its tables, the file: what a run costs whatever its length),
 printed as a share of the renderer alone's time: the part of the ratio that no per-epoch speed-up moves (a
-slight overstatement: the scene's build, ~0.3 s, is timed in both).
+slight overstatement: the scene's build, ~0.3 s, is timed in both), and the whole run again with its check's
+reference taken out, first all of it, then all but the analytic model the file carries at every epoch
+(:data:`RUN_WITHOUT_CHECK`): the floors of the ratio that no cheaper check can go below, and by difference what the
+file's analytic model and the check cost in the run.
 
     .venv/bin/python benchmarks/bench_run.py [--duration S] [--repeat N]
 
@@ -60,6 +63,46 @@ print(json.dumps({{"epochs": len(g), "render_s": time.perf_counter() - t0, "rend
 """
 
 
+# The run without its check (the floor of the ratio), in two steps, each the same ``sunsim run`` process with part of
+# the check's reference answering zeros at once. "bare": no analytic reference at all, no unchecked-direct masks,
+# no hint-free direct re-render (so no visibility tables either): start-up, geometry, the scene, the render and the
+# file, as in the user's command. "model": as "bare", but the analytic model the file carries at every epoch, its
+# ``analytic`` variable (the direct Sun and the albedo on the map's own cells with the body box), computed as in the
+# run but without the check's traced shares that the run's albedo kernel sums beside it: what the file's model
+# costs, without the check's traced shares, refined cells, masks and re-render. Its check then fails (exit 1). Not product modes: measurements of what the check costs.
+RUN_WITHOUT_CHECK = """
+import sys, types
+import numpy as np
+from simcore.pipeline import reference, run
+MODE = {mode!r}
+full = reference.CheckReference.analytic
+
+
+def analytic(self, sl, reflectivity_map, direct=True, mesh=False, albedo=True, **kw):
+    z = np.zeros((sl.stop - sl.start, self.config.n_diodes))
+    out = types.SimpleNamespace(direct_w_m2=z, albedo_w_m2=z, albedo_box_w_m2=z, albedo_mesh_w_m2=z,
+                                albedo_visibility_error_w_m2=z)
+    if MODE == "model" and reflectivity_map is self.run.map:
+        # the direct Sun as in the run; the albedo on the map's cells with the body box alone (the check's traced
+        # shares, summed beside it in the run's kernel, left out)
+        part = full(self, sl, reflectivity_map, direct=direct, albedo=albedo)
+        out.direct_w_m2, out.albedo_box_w_m2 = part.direct_w_m2, part.albedo_w_m2
+    return out
+
+
+def unchecked(self, sl):
+    z = np.zeros((sl.stop - sl.start, self.config.n_diodes), bool)
+    return z, z
+
+
+reference.CheckReference.analytic = analytic
+reference.CheckReference.direct_unchecked = unchecked
+run.plain_check_epochs = lambda seed, n: np.zeros(n, bool)
+from simcore.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
 def render_alone(duration):
     """Return (epochs, wall seconds, CPU seconds of Renderer.render over the run's chunks) from a fresh process."""
     out = subprocess.run([sys.executable, "-c", RENDER_ALONE.format(duration=duration)], capture_output=True,
@@ -74,11 +117,12 @@ def _children_cpu_s():
     return r.ru_utime + r.ru_stime
 
 
-def whole_run(duration, path):
+def whole_run(duration, path, without=None):
     """Return (exit status, wall seconds, CPU seconds, the command's JSON report) of ``sunsim run`` as a fresh
-    process."""
-    cmd = [sys.executable, "-m", "simcore.cli", "run", "--duration", str(duration), "-o", path, "--overwrite",
-           "--json"]
+    process; ``without`` "bare" or "model": with part of its check taken out (:data:`RUN_WITHOUT_CHECK`)."""
+    cmd = ([sys.executable, "-m", "simcore.cli"] if without is None else
+           [sys.executable, "-c", RUN_WITHOUT_CHECK.format(mode=without)])
+    cmd += ["run", "--duration", str(duration), "-o", path, "--overwrite", "--json"]
     t0, c0 = time.perf_counter(), _children_cpu_s()
     p = subprocess.run(cmd, capture_output=True, text=True)
     dt, cpu = time.perf_counter() - t0, _children_cpu_s() - c0
@@ -100,20 +144,35 @@ def main(argv=None):
             n, t_render, c_render = render_alone(a.duration)
             rc, t_run, c_run, report = whole_run(a.duration, os.path.join(tmp, f"run{i}.nc"))
             t_fixed = whole_run(1.0, os.path.join(tmp, f"one{i}.nc"))[1]
+            _, t_bare, c_bare, _ = whole_run(a.duration, os.path.join(tmp, f"bare{i}.nc"), "bare")
+            _, t_model, c_model, _ = whole_run(a.duration, os.path.join(tmp, f"model{i}.nc"), "model")
             rounds.append(dict(render_s=t_render, run_s=t_run, ratio=t_run / t_render, exit=rc, fixed_s=t_fixed,
+                               bare_s=t_bare, bare_ratio=t_bare / t_render, model_s=t_model,
+                               model_ratio=t_model / t_render, bare_cpu_ratio=c_bare / c_render,
+                               model_cpu_ratio=c_model / c_render, check_share=(t_run - t_model) / t_render,
+                               model_share=(t_model - t_bare) / t_render,
                                render_cpu_s=c_render, run_cpu_s=c_run, cpu_ratio=c_run / c_render,
                                check=report["check"].get("verdict"), load=os.getloadavg()[0]))
             print(f"round {i + 1}/{a.repeat}: sunsim run {t_run:6.1f} s ({1e3 * t_run / n:.3f} ms per epoch, exit "
                   f"{rc}, check {rounds[-1]['check']}), renderer alone {t_render:6.1f} s "
                   f"({1e3 * t_render / n:.3f} ms per epoch): ratio {t_run / t_render:.3f}; CPU {c_run:.1f} s against "
-                  f"{c_render:.1f} s: ratio {c_run / c_render:.3f}; a one-epoch run {t_fixed:.2f} s", flush=True)
+                  f"{c_render:.1f} s: ratio {c_run / c_render:.3f}; a one-epoch run {t_fixed:.2f} s; without the check: "
+                  f"bare {t_bare:.1f} s, ratio {t_bare / t_render:.3f} (CPU {c_bare / c_render:.3f}), with the file's "
+                  f"analytic model {t_model:.1f} s, ratio {t_model / t_render:.3f} (CPU {c_model / c_render:.3f})",
+                  flush=True)
     med = {k: statistics.median(r[k] for r in rounds)
-           for k in ("run_s", "render_s", "ratio", "run_cpu_s", "render_cpu_s", "cpu_ratio", "fixed_s")}
+           for k in ("run_s", "render_s", "ratio", "run_cpu_s", "render_cpu_s", "cpu_ratio", "fixed_s", "bare_s",
+                     "bare_ratio", "model_s", "model_ratio", "bare_cpu_ratio", "model_cpu_ratio", "check_share",
+                     "model_share")}
     print(f"default study, {n} epochs x 14 diodes: median of {a.repeat}: sunsim run {1e3 * med['run_s'] / n:.3f} ms, "
           f"renderer alone {1e3 * med['render_s'] / n:.3f} ms per epoch, ratio {med['ratio']:.3f} (limit {LIMIT}); "
           f"CPU time {1e3 * med['run_cpu_s'] / n:.3f} against {1e3 * med['render_cpu_s'] / n:.3f} ms per epoch, ratio "
           f"{med['cpu_ratio']:.3f}; a one-epoch run {med['fixed_s']:.2f} s, "
           f"{med['fixed_s'] / med['render_s']:.3f} of the renderer alone's time (the fixed part of the ratio); "
+          f"without the check: bare {med['bare_ratio']:.3f} (CPU {med['bare_cpu_ratio']:.3f}), with the file's "
+          f"analytic model {med['model_ratio']:.3f} (CPU {med['model_cpu_ratio']:.3f}) "
+          f"(each round's differences: the check costs {med['check_share']:.3f} of the renderer alone's time, the "
+          f"analytic model {med['model_share']:.3f}); "
           f"load average (1 min) {load0:.2f} at the start on {os.cpu_count()} cores")
     print(json.dumps({"bench": "run", "epochs": n, "run_ms_per_epoch": round(1e3 * med["run_s"] / n, 4),
                       "render_ms_per_epoch": round(1e3 * med["render_s"] / n, 4), "ratio": round(med["ratio"], 3),
@@ -121,6 +180,12 @@ def main(argv=None):
                       "render_cpu_ms_per_epoch": round(1e3 * med["render_cpu_s"] / n, 4),
                       "cpu_ratio": round(med["cpu_ratio"], 3), "one_epoch_run_s": round(med["fixed_s"], 3),
                       "one_epoch_share": round(med["fixed_s"] / med["render_s"], 3),
+                      "bare_ratio": round(med["bare_ratio"], 3), "model_ratio": round(med["model_ratio"], 3),
+                      "bare_cpu_ratio": round(med["bare_cpu_ratio"], 3),
+                      "model_cpu_ratio": round(med["model_cpu_ratio"], 3),
+                      "check_share": round(med["check_share"], 3), "model_share": round(med["model_share"], 3),
+                      "bare_ratios": [round(r["bare_ratio"], 3) for r in rounds],
+                      "model_ratios": [round(r["model_ratio"], 3) for r in rounds],
                       "cpu_ratios": [round(r["cpu_ratio"], 3) for r in rounds],
                       "ratios": [round(r["ratio"], 3) for r in rounds], "checks": [r["check"] for r in rounds],
                       "limit": LIMIT, "meets_limit": bool(med["ratio"] <= LIMIT), "repeat": a.repeat,
