@@ -6,14 +6,14 @@ process ``python -m simcore.cli run --duration S -o FILE`` (what the ``sunsim`` 
 imports, orbit and geometry, the scene, the render, the analytic reference and its check, the netCDF file.
 Beside it, the renderer alone, bench_render's way: in another fresh process the same study is prepared
 (:class:`simcore.pipeline.run.PreparedRun`: orbit, geometry and maps, not timed), then the renderer is built and
-``Renderer.render`` runs over the run's chunks, timed (the scene and kernel compilation included, as in the run). Their ratio is what everything else costs on top of the
-rendering (issue 32: at most 1.2 over three orbits, ``--duration 17613``). Each round also times a one-epoch
-``sunsim run`` (start-up and imports, the scene and its tables, the file: what a run costs whatever its length),
-printed as a share of the renderer alone's time: the part of the ratio that no per-epoch speed-up moves (a
-slight overstatement: the scene's build, ~0.3 s, is timed in both), and the whole run again with its check's
-reference taken out, first all of it, then all but the analytic model the file carries at every epoch
-(:data:`RUN_WITHOUT_CHECK`): the floors of the ratio that no cheaper check can go below, and by difference what the
-file's analytic model and the check cost in the run.
+``Renderer.render`` runs over the run's chunks, timed (the scene and kernel compilation included, as in the run).
+Their ratio is what everything else costs on top of the rendering (issue 32: at most 1.2 over three orbits,
+``--duration 17613``). Each round also times a one-epoch ``sunsim run`` (start-up and imports, the scene and its
+tables, the file: what a run costs whatever its length), printed as a share of the renderer alone's time: the part
+of the ratio that no per-epoch speed-up moves (a slight overstatement: the scene's build, ~0.3 s, is timed in both).
+And it times the whole run again with its check's reference taken out, first all of it, then all but the analytic
+model the file carries at every epoch (:data:`RUN_WITHOUT_CHECK`): the floors of the ratio that no cheaper check can
+go below, and by difference what the file's analytic model and the check cost in the run.
 
     .venv/bin/python benchmarks/bench_run.py [--duration S] [--repeat N]
 
@@ -63,13 +63,13 @@ print(json.dumps({{"epochs": len(g), "render_s": time.perf_counter() - t0, "rend
 """
 
 
-# The run without its check (the floor of the ratio), in two steps, each the same ``sunsim run`` process with part of
-# the check's reference answering zeros at once. "bare": no analytic reference at all, no unchecked-direct masks,
-# no hint-free direct re-render (so no visibility tables either): start-up, geometry, the scene, the render and the
-# file, as in the user's command. "model": as "bare", but the analytic model the file carries at every epoch, its
-# ``analytic`` variable (the direct Sun and the albedo on the map's own cells with the body box), computed as in the
-# run but without the check's traced shares that the run's albedo kernel sums beside it: what the file's model
-# costs, without the check's traced shares, refined cells, masks and re-render. Its check then fails (exit 1). Not product modes: measurements of what the check costs.
+# The run without its check (the floor of the ratio), in two steps, each the same ``sunsim run`` process with part
+# of the check's reference answering zeros at once. "bare": no analytic reference at all, no unchecked-direct
+# masks, no hint-free direct re-render (so no visibility tables either): start-up, geometry, the scene, the render
+# and the file, as in the user's command. "model": as "bare", plus the analytic model the file carries at every
+# epoch, its ``analytic`` variable (the direct Sun, and the albedo on the map's own cells with the body box),
+# computed as in the run but without the check's traced shares that the run's albedo kernel sums beside it. Its
+# check then fails (exit 1). Not product modes: measurements of what the model and the check cost.
 RUN_WITHOUT_CHECK = """
 import sys, types
 import numpy as np
@@ -156,9 +156,9 @@ def main(argv=None):
             print(f"round {i + 1}/{a.repeat}: sunsim run {t_run:6.1f} s ({1e3 * t_run / n:.3f} ms per epoch, exit "
                   f"{rc}, check {rounds[-1]['check']}), renderer alone {t_render:6.1f} s "
                   f"({1e3 * t_render / n:.3f} ms per epoch): ratio {t_run / t_render:.3f}; CPU {c_run:.1f} s against "
-                  f"{c_render:.1f} s: ratio {c_run / c_render:.3f}; a one-epoch run {t_fixed:.2f} s; without the check: "
-                  f"bare {t_bare:.1f} s, ratio {t_bare / t_render:.3f} (CPU {c_bare / c_render:.3f}), with the file's "
-                  f"analytic model {t_model:.1f} s, ratio {t_model / t_render:.3f} (CPU {c_model / c_render:.3f})",
+                  f"{c_render:.1f} s: ratio {c_run / c_render:.3f}; a one-epoch run {t_fixed:.2f} s; without the "
+                  f"check: bare {t_bare:.1f} s, ratio {t_bare / t_render:.3f} (CPU {c_bare / c_render:.3f}), with "
+                  f"the file's analytic model {t_model:.1f} s, ratio {t_model / t_render:.3f} (CPU {c_model / c_render:.3f})",
                   flush=True)
     med = {k: statistics.median(r[k] for r in rounds)
            for k in ("run_s", "render_s", "ratio", "run_cpu_s", "render_cpu_s", "cpu_ratio", "fixed_s", "bare_s",
