@@ -158,8 +158,8 @@ def main(argv=None):
                   f"({1e3 * t_render / n:.3f} ms per epoch): ratio {t_run / t_render:.3f}; CPU {c_run:.1f} s against "
                   f"{c_render:.1f} s: ratio {c_run / c_render:.3f}; a one-epoch run {t_fixed:.2f} s; without the "
                   f"check: bare {t_bare:.1f} s, ratio {t_bare / t_render:.3f} (CPU {c_bare / c_render:.3f}), with "
-                  f"the file's analytic model {t_model:.1f} s, ratio {t_model / t_render:.3f} (CPU {c_model / c_render:.3f})",
-                  flush=True)
+                  f"the file's analytic model {t_model:.1f} s, ratio {t_model / t_render:.3f} "
+                  f"(CPU {c_model / c_render:.3f})", flush=True)
     med = {k: statistics.median(r[k] for r in rounds)
            for k in ("run_s", "render_s", "ratio", "run_cpu_s", "render_cpu_s", "cpu_ratio", "fixed_s", "bare_s",
                      "bare_ratio", "model_s", "model_ratio", "bare_cpu_ratio", "model_cpu_ratio", "check_share",
