@@ -254,12 +254,7 @@ class EarthAlbedo:
         U = len(ue)
         epochs = _pad2(dict(cap, key=np.zeros(U, np.uint32), k=np.zeros(U, np.int64), earth=earth[ue], sun=sun[ue],
                             rot=rot[ue], margin=margin, tlevel=tlevel.astype(np.float32)))
-        parts = list(self._trace_tasks(self._earth_corners, epochs, n_points))
-        earth_corners = parts[0][1]
-        if len(parts) > 1:                                      # (epochs beyond one launch's lanes: _MAX_LANES)
-            earth_corners = dr.zeros(mi.Float, len(epochs["key"]) * n_points)
-            for sl, v in parts:
-                dr.scatter(earth_corners, v, dr.arange(mi.UInt32, sl.start * n_points, sl.stop * n_points))
+        earth_corners = self._joined(list(self._trace_tasks(self._earth_corners, epochs, n_points)), n_points)
         prop = {k: v[inv] for k, v in cap.items()}              # the tasks' own copies of their epoch's cap
         t = _pad2(dict(t, epoch_row=inv.astype(np.uint32), **prop))
         omega = np.diff(t["tedge"], axis=1) / _N_P              # (T, N_T): a bin's solid angle / the cap's
@@ -271,13 +266,7 @@ class EarthAlbedo:
             dr.make_opaque(bins, tasks)
             parts.append((sl, self._replay("_proposal_tables", self._proposal_tables, f,
                                            host_array(mi.Float64, omega[sl]), bins, tasks)))
-        pmf, cdf = parts[0][1]
-        if len(parts) > 1:                                      # (tasks beyond one launch's lanes: _MAX_LANES)
-            pmf, cdf = dr.zeros(mi.Float, len(omega) * B), dr.zeros(mi.Float, len(omega) * B)
-            for sl, (p, c) in parts:
-                at = dr.arange(mi.UInt32, sl.start * B, sl.stop * B)
-                dr.scatter(pmf, p, at)
-                dr.scatter(cdf, c, at)
+        pmf, cdf = self._joined(parts, B)
         return dict(prop, pmf=pmf, cdf=cdf)
 
     def _proposal_tables(self, f, omega, bins, tasks):

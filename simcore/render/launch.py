@@ -405,6 +405,22 @@ class Launcher:
             out.append(np.stack([s.numpy()[:sl.stop - sl.start] for s in sums]))
         return out[0] if len(out) == 1 else np.concatenate(out, axis=1)
 
+    def _joined(self, parts, per):
+        """Return the values of launches ``parts`` [(task slice, an array or a tuple of arrays of ``per`` values a
+        task)] (:meth:`_trace_tasks`'s slices) as whole arrays over all their tasks: one launch's as they are, those of
+        several scattered into one."""
+        dr, mi = self._dr, self._mi
+        first = parts[0][1]
+        if len(parts) == 1:
+            return first
+        single = not isinstance(first, tuple)
+        out = [dr.zeros(mi.Float, parts[-1][0].stop * per) for _ in ((first,) if single else first)]
+        for sl, v in parts:
+            at = dr.arange(mi.UInt32, sl.start * per, sl.stop * per)
+            for whole, part in zip(out, (v,) if single else v):
+                dr.scatter(whole, part, at)
+        return out[0] if single else tuple(out)
+
     def _trace_tasks(self, kernel, t, n_points, **tables):
         """Yield (task slice, ``kernel(lanes, n_points)`` as a Dr.Jit array of the slice's tasks x ``n_points``
         values) for the tasks ``t`` (at least 2) in launches of bounded size; ``tables``: tables (``_TABLES``) already
