@@ -137,6 +137,8 @@ def main(argv=None):
                     help="seconds of orbit (default %(default)s: three orbits)")
     ap.add_argument("--repeat", type=int, default=1, help="alternating rounds (default %(default)s)")
     a = ap.parse_args(argv)
+    if a.repeat < 1 or not a.duration >= 1.0:
+        ap.error(f"--repeat must be at least 1 and --duration at least 1 s (got {a.repeat} and {a.duration:g})")
     load0 = os.getloadavg()[0]
     rounds = []
     with tempfile.TemporaryDirectory() as tmp:
