@@ -10,7 +10,7 @@ splits them into two folders, each with the checkout under the limit: ``.whl/a``
 and ``.whl/b`` (libLLVM). The two device calls that use them are printed at the end (benchmarks/README.md, "The
 GPU figure: how to take it").
 
-    .venv/bin/python benchmarks/device_wheels.py [--dest .whl]
+    .venv/bin/python benchmarks/device_wheels.py
 
 It needs the package index (pip download); run it where the checkout is, before the GPU is lent.
 """
@@ -37,6 +37,7 @@ KEEP_PLUGINS = {"diffuse", "plastic", "roughplastic", "pplastic", "conductor", "
                 "principled", "principledthin", "measured", "hair", "uniform", "srgb", "d65", "bitmap",
                 "checkerboard", "blackbody", "irregular", "regular", "rawconstant", "mesh_attribute"}
 LIMIT_BYTES = 64 * 2 ** 20
+DEST = ".whl"             # in the checkout (git ignores it): device_bench.sh reads .whl/a and .whl/b
 
 
 def checkout_bytes(root):
@@ -58,7 +59,9 @@ def download(names, dest):
             pins.append(name)
     cmd = [sys.executable, "-m", "pip", "download", "-q", "--no-deps", "--only-binary=:all:", "--python-version",
            PYTHON, "--implementation", "cp", "-d", dest, *(a for p in PLATFORMS for a in ("--platform", p)), *pins]
-    subprocess.run(cmd, check=True)
+    if subprocess.run(cmd).returncode:
+        raise SystemExit(f"pip could not download {' '.join(pins)} (above: why; this script needs the package "
+                         "index): nothing was replaced")
     return sorted(os.path.join(dest, f) for f in os.listdir(dest) if f.endswith(".whl"))
 
 
@@ -94,30 +97,31 @@ def slim_mitsuba(path):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--dest", default=".whl", help="folder of the two parts (default %(default)s; git ignores it)")
-    a = ap.parse_args(argv)
+    ap.parse_args(argv)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    dest = os.path.join(root, a.dest)
+    dest = os.path.join(root, DEST)
     tree = checkout_bytes(root)
     for part, names in (("a", PART_A), ("b", PART_B)):
         folder = os.path.join(dest, part)
-        shutil.rmtree(folder, ignore_errors=True)
-        os.makedirs(folder)
         with tempfile.TemporaryDirectory() as tmp:
-            for wheel in download(names, tmp):
+            wheels = download(names, tmp)           # (a failed download leaves the folder as it was)
+            for wheel in wheels:
                 if os.path.basename(wheel).startswith("mitsuba-"):
                     slim_mitsuba(wheel)
+            shutil.rmtree(folder, ignore_errors=True)
+            os.makedirs(folder)
+            for wheel in wheels:
                 shutil.move(wheel, folder)
         size = sum(os.path.getsize(os.path.join(folder, f)) for f in os.listdir(folder))
         total = size + tree
-        print(f"{a.dest}/{part}: {len(os.listdir(folder))} wheels, {size / 2 ** 20:.1f} MiB; with the checkout "
+        print(f"{DEST}/{part}: {len(os.listdir(folder))} wheels, {size / 2 ** 20:.1f} MiB; with the checkout "
               f"({tree / 2 ** 20:.1f} MiB) {total / 2 ** 20:.1f} of {LIMIT_BYTES / 2 ** 20:.0f} MiB")
         if total > LIMIT_BYTES:
-            raise SystemExit(f"{a.dest}/{part} and the checkout exceed the device call's 64 MiB: carry less")
+            raise SystemExit(f"{DEST}/{part} and the checkout exceed the device call's 64 MiB: carry less")
     print(f"then, on the lent GPU machine (the device tool's run), one call right after the other (the first one's "
           f"installation lives only while the machine stays warm):\n"
-          f"  run(command='bash benchmarks/device_bench.sh a', carry=['{a.dest}/a'], timeout_s=300)\n"
-          f"  run(command='bash benchmarks/device_bench.sh b', carry=['{a.dest}/b'], timeout_s=600)")
+          f"  run(command='bash benchmarks/device_bench.sh a', carry=['{DEST}/a'], timeout_s=300)\n"
+          f"  run(command='bash benchmarks/device_bench.sh b', carry=['{DEST}/b'], timeout_s=600)")
 
 
 if __name__ == "__main__":
