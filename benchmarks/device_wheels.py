@@ -49,8 +49,9 @@ def checkout_bytes(root):
                os.path.isfile(os.path.join(root, p)))
 
 
-def download(names, dest):
-    """Download the cp312 wheels of ``names`` at this environment's versions into ``dest``; return their paths."""
+def download(names, dest, kept):
+    """Download the cp312 wheels of ``names`` at this environment's versions into ``dest``; return their paths.
+    On failure, exit with a line that says ``kept`` (the part's folder) was left as it was."""
     pins = []
     for name in names:
         try:
@@ -61,7 +62,7 @@ def download(names, dest):
            PYTHON, "--implementation", "cp", "-d", dest, *(a for p in PLATFORMS for a in ("--platform", p)), *pins]
     if subprocess.run(cmd).returncode:
         raise SystemExit(f"pip could not download {' '.join(pins)} (above: why; this script needs the package "
-                         "index): nothing was replaced")
+                         f"index): {kept} was left as it was")
     return sorted(os.path.join(dest, f) for f in os.listdir(dest) if f.endswith(".whl"))
 
 
@@ -104,7 +105,7 @@ def main(argv=None):
     for part, names in (("a", PART_A), ("b", PART_B)):
         folder = os.path.join(dest, part)
         with tempfile.TemporaryDirectory() as tmp:
-            wheels = download(names, tmp)           # (a failed download leaves the folder as it was)
+            wheels = download(names, tmp, f"{DEST}/{part}")    # (a failed one leaves the folder as it was)
             for wheel in wheels:
                 if os.path.basename(wheel).startswith("mitsuba-"):
                     slim_mitsuba(wheel)
